@@ -1,0 +1,168 @@
+//! Decoding a tag from four known corners.
+//!
+//! The data square is mapped into the image with a homography; every cell is
+//! sampled over its central area; the black and white levels are measured on
+//! the tag itself (the black frame just outside the data square and the
+//! one-cell white margin just inside it), which is more robust than Otsu on
+//! the cell samples alone: it works for grids that are nearly all black or
+//! all white, and it tells how far each cell is from the threshold, so that
+//! doubtful cells become Reed-Solomon erasures instead of errors.
+
+use image::GrayImage;
+
+use crate::family::Family;
+use crate::geometry::{B, CORNERS};
+use crate::grid_code::{decode_cells, GridReading};
+use crate::homography::Homography;
+
+/// A tag read from four corners.
+#[derive(Debug, Clone, PartialEq)]
+pub struct QuadReading {
+    /// Decoded id.
+    pub id: u64,
+    /// Corners in canonical order TL, BL, BR, TR (pixel-centre coordinates).
+    pub corners: [[f64; 2]; 4],
+    /// Symbols the Reed-Solomon decoder corrected.
+    pub corrected: usize,
+    /// Quarter turns between the corner list given and the canonical one.
+    pub rotation: usize,
+    /// Contrast between the measured white and black levels (0..255).
+    pub contrast: f64,
+}
+
+/// Bilinear sample of an 8-bit image at a pixel-centre coordinate; `None`
+/// outside the image.
+#[inline]
+pub fn sample_bilinear(img: &GrayImage, x: f64, y: f64) -> Option<f64> {
+    let (w, h) = img.dimensions();
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    let x0 = (x.floor() as u32).min(w.saturating_sub(2));
+    let y0 = (y.floor() as u32).min(h.saturating_sub(2));
+    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
+    let x1 = (x0 + 1).min(w - 1);
+    let y1 = (y0 + 1).min(h - 1);
+    let p = |x: u32, y: u32| f64::from(img.get_pixel(x, y).0[0]);
+    let top = p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx;
+    let bot = p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx;
+    Some(top * (1.0 - fy) + bot * fy)
+}
+
+fn median(v: &mut [f64]) -> Option<f64> {
+    if v.is_empty() {
+        return None;
+    }
+    let mid = v.len() / 2;
+    v.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(v[mid])
+}
+
+/// Samples taken from a quad: one darkness-agnostic grey value per cell plus
+/// the tag's own black and white levels.
+struct GridSamples {
+    cells: Vec<f64>,
+    black: f64,
+    white: f64,
+}
+
+fn sample_grid(img: &GrayImage, n: usize, h: &Homography) -> Option<GridSamples> {
+    let step = 1.0 / (n as f64 + 2.0);
+    let at = |u: f64, v: f64| -> Option<f64> {
+        let p = h.map([u, v])?;
+        sample_bilinear(img, p[0], p[1])
+    };
+    // Each cell averages a 3 x 3 pattern over its central half: blur and
+    // noise average out while neighbouring cells stay out.
+    let offs = [-0.25 * step, 0.0, 0.25 * step];
+    let mut cells = Vec::with_capacity(n * n);
+    for i in 0..n {
+        for j in 0..n {
+            let cu = -0.5 + (1.5 + j as f64) * step;
+            let cv = -0.5 + (1.5 + i as f64) * step;
+            let mut sum = 0.0;
+            for dv in offs {
+                for du in offs {
+                    sum += at(cu + du, cv + dv)?;
+                }
+            }
+            cells.push(sum / 9.0);
+        }
+    }
+    // White margin: centre line of the one-cell margin; black frame: centre
+    // line of the frame, b/2 outside the data square.
+    let mut white = Vec::with_capacity(4 * (n + 2));
+    let mut black = Vec::with_capacity(4 * (n + 2));
+    let m = 0.5 - 0.5 * step;
+    let f = 0.5 + 0.5 * B;
+    for k in 0..=n + 1 {
+        let t = -0.5 + (k as f64 + 0.5) * step;
+        for (u, v) in [(t, -m), (t, m), (-m, t), (m, t)] {
+            if let Some(s) = at(u, v) {
+                white.push(s);
+            }
+        }
+        for (u, v) in [(t, -f), (t, f), (-f, t), (f, t)] {
+            if let Some(s) = at(u, v) {
+                black.push(s);
+            }
+        }
+    }
+    Some(GridSamples {
+        cells,
+        black: median(&mut black)?,
+        white: median(&mut white)?,
+    })
+}
+
+/// Reads a tag of `family` whose data-square corners are `corners`, given in
+/// the order TL, BL, BR, TR up to a rotation (any of the four cyclic shifts
+/// of that order). Returns `None` when nothing decodes unambiguously.
+///
+/// The corners returned are the same points reordered so that corner 0 is
+/// the tag's physical top-left corner.
+pub fn decode_quad(
+    img: &GrayImage,
+    family: &Family,
+    corners: &[[f64; 2]; 4],
+) -> Option<QuadReading> {
+    let h = Homography::from_points(&CORNERS, corners)?;
+    let n = family.grid();
+    let s = sample_grid(img, n, &h)?;
+    let contrast = s.white - s.black;
+    // Less than ~4 grey levels between paper and ink is noise, not a tag.
+    if contrast < 4.0 {
+        return None;
+    }
+    let threshold = 0.5 * (s.white + s.black);
+    let bits: Vec<bool> = s.cells.iter().map(|&v| v < threshold).collect();
+    let reading = decode_cells(family, &bits, &[]).or_else(|| {
+        // Second chance: cells within 20% of the contrast from the threshold
+        // are erased; RS corrects twice as many erasures as errors.
+        let doubtful: Vec<bool> = s
+            .cells
+            .iter()
+            .map(|&v| (v - threshold).abs() < 0.2 * contrast)
+            .collect();
+        doubtful
+            .iter()
+            .any(|&d| d)
+            .then(|| decode_cells(family, &bits, &doubtful))
+            .flatten()
+    })?;
+    Some(reading_to_quad(reading, corners, contrast))
+}
+
+fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> QuadReading {
+    // A clockwise quarter turn of the grid moves corner c to position c - 1
+    // of the TL, BL, BR, TR list, so physical corner c was seen at c - d.
+    let d = r.rotation;
+    let canonical = std::array::from_fn(|c| corners[(c + 4 - d % 4) % 4]);
+    QuadReading {
+        id: r.id,
+        corners: canonical,
+        corrected: r.corrected,
+        rotation: d,
+        contrast,
+    }
+}

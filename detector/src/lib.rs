@@ -1,0 +1,24 @@
+//! CopperTag: an occlusion-resilient fiducial marker.
+//!
+//! This crate is the library a robot program depends on: the tag families
+//! (`ct14`, `ct8`), their Reed-Solomon code, the tag geometry shared by every
+//! renderer, and decoding from four corners.
+//!
+//! Conventions used everywhere: pixel-centre image coordinates (the centre of
+//! the top-left pixel is (0, 0), x right, y down); tag corners in the order
+//! TL, BL, BR, TR of the white data square, "top" being the side away from
+//! the printed id; metres and radians in files.
+#![deny(missing_docs)]
+
+pub mod decode;
+pub mod digits;
+mod error;
+pub mod family;
+pub mod geometry;
+pub mod grid_code;
+pub mod homography;
+pub mod rs;
+
+pub use decode::{decode_quad, QuadReading};
+pub use error::{Error, Result};
+pub use family::Family;

@@ -1,0 +1,1 @@
+//! Print-ready SVG of tags and tag sheets.
