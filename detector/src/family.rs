@@ -111,7 +111,7 @@ impl Family {
         }
         let code = ReedSolomon::new(rs.symbol_bits, rs.primitive_poly, rs.first_root, rs.n, rs.k)?;
         let n = spec.grid;
-        if n < 2 || n > 64 {
+        if !(2..=64).contains(&n) {
             return Err(bad(format!("grid {n} is outside 2..=64")));
         }
         let cells = n * n;

@@ -4,5 +4,8 @@
 //! tiny-skia; `svg` writes the same geometry as print-ready SVG.
 #![deny(missing_docs)]
 
+mod error;
 pub mod raster;
 pub mod svg;
+
+pub use error::SynthError;

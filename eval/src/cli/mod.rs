@@ -1,0 +1,4 @@
+//! One module per subcommand; each exposes `XArgs` (clap) and `run`.
+
+pub mod generate;
+pub mod output;
