@@ -9,7 +9,10 @@ VENV    := .venv
 VPY     := $(VENV)/bin/python
 BIN     := target/release/coppertag
 
-.PHONY: all build test lint venv bench reproduce clean
+QUICK   ?=
+QUICKDIR := build/quick
+
+.PHONY: all build test lint venv bench reproduce baseline gate clean
 
 all: build
 
@@ -29,8 +32,29 @@ lint:
 	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
 
 test: venv lint
-	$(CARGO) test --workspace --locked
+	COPPERTAG_REQUIRE_VENV=1 $(CARGO) test --workspace --locked
 	$(VPY) eval/peers/selftest.py
+	$(MAKE) gate
+
+# The regression gate: the QUICK sets (a tenth of every sweep) through all
+# four detectors, compared with the committed baseline.
+gate: venv build
+	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports --quiet
+	$(BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json
+
+# Re-make the baseline from the QUICK sets (after a deliberate change).
+baseline: venv build
+	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports --quiet
+	$(BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json --update
+
+# The paper's tables and figures into reports/ (QUICK=1: a tenth of every
+# sweep, into build/quick/reports instead).
+reproduce: venv build
+ifeq ($(QUICK),)
+	$(BIN) reproduce --work build/full --reports reports
+else
+	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports
+endif
 
 bench: venv
 	$(CARGO) bench --workspace --locked

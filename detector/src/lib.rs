@@ -2,7 +2,8 @@
 //!
 //! This crate is the library a robot program depends on: the tag families
 //! (`ct14`, `ct8`), their Reed-Solomon code, the tag geometry shared by every
-//! renderer, and decoding from four corners.
+//! renderer, decoding from four corners, the detector that finds tags in
+//! images (including partly hidden ones) and planar pose estimation.
 //!
 //! Conventions used everywhere: pixel-centre image coordinates (the centre of
 //! the top-left pixel is (0, 0), x right, y down); tag corners in the order
@@ -11,14 +12,17 @@
 #![deny(missing_docs)]
 
 pub mod decode;
+pub mod detect;
 pub mod digits;
 mod error;
 pub mod family;
 pub mod geometry;
 pub mod grid_code;
 pub mod homography;
+pub mod pose;
 pub mod rs;
 
 pub use decode::{decode_quad, QuadReading};
+pub use detect::{Detection, DetectionStats, Detector, DetectorConfig, StageTimes};
 pub use error::{Error, Result};
 pub use family::Family;

@@ -199,17 +199,47 @@ fn stroke_polygons(lines: &[Vec<[f64; 2]>], width: f64, scale: f64) -> Vec<Vec<[
     out
 }
 
-/// Builds the tiny-skia path of one element under a map; `None` when any
-/// vertex cannot be mapped or the path is empty.
-pub fn element_path(el: &Element, map: &dyn TagToPixel) -> Option<(tiny_skia::Path, FillRule)> {
+/// The closed polygons of one element mapped to output pixels (tiny-skia
+/// coordinates, see [`TagToPixel`]), flattened and subdivided as described
+/// in the module docs, with the fill rule that combines them. `None` when
+/// any vertex cannot be mapped.
+///
+/// This is the geometry both rasterisers draw: tiny-skia through
+/// [`element_path`], and the exact-area rasteriser of
+/// [`crate::coverage`] that the camera renderer uses.
+pub fn element_polygons(
+    el: &Element,
+    map: &dyn TagToPixel,
+) -> Option<(Vec<Vec<[f64; 2]>>, FillRule)> {
     let scale = map.scale();
     let (polys, rule) = shape_polygons(&el.shape, scale);
     let bend = !map.preserves_lines();
-    let mut pb = PathBuilder::new();
+    let mut out = Vec::with_capacity(polys.len());
     for poly in polys {
         let poly = subdivide(&poly, scale, bend);
-        for (i, &p) in poly.iter().enumerate() {
-            let q = map.map(p)?;
+        let mapped: Option<Vec<[f64; 2]>> = poly.iter().map(|&p| map.map(p)).collect();
+        out.push(mapped?);
+    }
+    Some((out, rule))
+}
+
+/// Maps a closed polygon given in tag (marker) units to output pixels,
+/// subdividing its edges first when the map bends lines, exactly as element
+/// shapes are; `None` when a vertex cannot be mapped.
+pub fn map_polygon(poly: &[[f64; 2]], map: &dyn TagToPixel) -> Option<Vec<[f64; 2]>> {
+    subdivide(poly, map.scale(), !map.preserves_lines())
+        .iter()
+        .map(|&p| map.map(p))
+        .collect()
+}
+
+/// Builds the tiny-skia path of one element under a map; `None` when any
+/// vertex cannot be mapped or the path is empty.
+pub fn element_path(el: &Element, map: &dyn TagToPixel) -> Option<(tiny_skia::Path, FillRule)> {
+    let (polys, rule) = element_polygons(el, map)?;
+    let mut pb = PathBuilder::new();
+    for poly in polys {
+        for (i, q) in poly.iter().enumerate() {
             let (x, y) = (q[0] as f32, q[1] as f32);
             if i == 0 {
                 pb.move_to(x, y);

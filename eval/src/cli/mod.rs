@@ -1,4 +1,12 @@
 //! One module per subcommand; each exposes `XArgs` (clap) and `run`.
 
+pub mod detect;
+pub mod evaluate;
+pub mod gate;
 pub mod generate;
 pub mod output;
+pub mod progress;
+pub mod report;
+pub mod reproduce;
+pub mod run;
+pub mod synth;

@@ -1,0 +1,251 @@
+//! Stage 2: border following (Suzuki & Abe, "Topological structural analysis
+//! of digitized binary images by border following", CVGIP 30(1), 1985,
+//! algorithm 1), re-implemented on the thresholded image.
+//!
+//! Why not `imageproc::contours::find_contours`: it copies the image into an
+//! `i32` label image and returns one `Vec` per contour, every frame. Here the
+//! labels live in the `u8` binary buffer itself (the hierarchy is not needed,
+//! only "visited" and "visited with background on the right"), and all
+//! points go into one flat buffer the detector keeps between frames. The
+//! scan itself skips long runs of equal pixels.
+//!
+//! Pixel values in the padded binary image: 0 background, 1 foreground not
+//! yet on a followed border, 2 on a followed border, 3 on a followed border
+//! whose right neighbour is background (Suzuki's negative NBD).
+
+/// One followed border.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Contour {
+    /// First point in [`Contours::points`].
+    pub start: u32,
+    /// Number of points.
+    pub len: u32,
+    /// Hole border (white region inside black) rather than outer border.
+    pub hole: bool,
+}
+
+/// All borders of a frame, points in working-image pixel coordinates.
+#[derive(Debug, Default)]
+pub(crate) struct Contours {
+    /// Points of every kept contour, one after the other.
+    pub points: Vec<[i32; 2]>,
+    /// The contours.
+    pub list: Vec<Contour>,
+}
+
+impl Contours {
+    /// Points of contour `c`.
+    pub fn points_of(&self, c: &Contour) -> &[[i32; 2]] {
+        &self.points[c.start as usize..(c.start + c.len) as usize]
+    }
+}
+
+/// Neighbour offsets, index increasing clockwise on screen (y down):
+/// E, SE, S, SW, W, NW, N, NE.
+const DX: [isize; 8] = [1, 1, 0, -1, -1, -1, 0, 1];
+const DY: [isize; 8] = [0, 1, 1, 1, 0, -1, -1, -1];
+
+/// Follows every border of the padded binary image `f` (`pw` x `ph`, zero
+/// border of one pixel). Contours with fewer than `min_len` or more than
+/// `max_len` points are followed (so they are marked) but not stored.
+/// Stored points are in unpadded coordinates.
+///
+/// Every border is traversed with the foreground on its left (screen
+/// coordinates, y down): outer borders anticlockwise on screen, hole
+/// borders clockwise.
+pub(crate) fn find_contours(
+    f: &mut [u8],
+    pw: usize,
+    ph: usize,
+    min_len: usize,
+    max_len: usize,
+    out: &mut Contours,
+) {
+    out.points.clear();
+    out.list.clear();
+    if pw < 3 || ph < 3 {
+        return;
+    }
+    let off: [isize; 8] = std::array::from_fn(|k| DY[k] * pw as isize + DX[k]);
+    for y in 1..ph - 1 {
+        let row = y * pw;
+        let mut x = 1;
+        while x < pw - 1 {
+            let i = row + x;
+            let v = f[i];
+            if v == 0 {
+                // Skip background quickly.
+                x += 1;
+                continue;
+            }
+            let outer = v == 1 && f[i - 1] == 0;
+            let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
+            if outer || hole {
+                // Start direction (i2): west for outer, east for hole.
+                let from = if outer { 4 } else { 0 };
+                follow(f, pw, i, from, &off, hole, min_len, max_len, out);
+            }
+            x += 1;
+        }
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn follow(
+    f: &mut [u8],
+    pw: usize,
+    start: usize,
+    from: usize,
+    off: &[isize; 8],
+    hole: bool,
+    min_len: usize,
+    max_len: usize,
+    out: &mut Contours,
+) {
+    let at = |i: usize, k: usize| (i as isize + off[k]) as usize;
+    let first = out.points.len();
+    let push = |out: &mut Contours, i: usize| {
+        out.points.push([(i % pw) as i32 - 1, (i / pw) as i32 - 1]);
+    };
+    // 3.1: clockwise from `from` for a non-zero neighbour.
+    let mut i1 = None;
+    for s in 0..8 {
+        let k = (from + s) % 8;
+        if f[at(start, k)] != 0 {
+            i1 = Some((at(start, k), k));
+            break;
+        }
+    }
+    let Some((i1, _)) = i1 else {
+        // Isolated pixel.
+        f[start] = 3;
+        return;
+    };
+    // 3.2
+    let (mut i2, mut i3) = (i1, start);
+    let mut stored = true;
+    loop {
+        if stored {
+            if out.points.len() - first >= max_len {
+                stored = false;
+                out.points.truncate(first);
+            } else {
+                push(out, i3);
+            }
+        }
+        // 3.3: counter-clockwise around i3, starting after i2.
+        let d = direction(i3, i2, pw);
+        let mut k = d;
+        let mut east_zero = false;
+        let mut i4 = i3;
+        for _ in 0..8 {
+            k = (k + 7) % 8;
+            let n = at(i3, k);
+            if f[n] != 0 {
+                i4 = n;
+                break;
+            }
+            if k == 0 {
+                east_zero = true;
+            }
+        }
+        // 3.4
+        if east_zero {
+            f[i3] = 3;
+        } else if f[i3] == 1 {
+            f[i3] = 2;
+        }
+        // 3.5
+        if i4 == start && i3 == i1 {
+            break;
+        }
+        i2 = i3;
+        i3 = i4;
+    }
+    let len = out.points.len() - first;
+    if !stored || len < min_len {
+        out.points.truncate(first);
+        return;
+    }
+    out.list.push(Contour {
+        start: first as u32,
+        len: len as u32,
+        hole,
+    });
+}
+
+/// Direction index from pixel `a` to its 8-neighbour `b`.
+#[inline]
+fn direction(a: usize, b: usize, pw: usize) -> usize {
+    let d = b as isize - a as isize;
+    let pw = pw as isize;
+    match d {
+        1 => 0,
+        x if x == pw + 1 => 1,
+        x if x == pw => 2,
+        x if x == pw - 1 => 3,
+        -1 => 4,
+        x if x == -pw - 1 => 5,
+        x if x == -pw => 6,
+        _ => 7,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn padded(rows: &[&str]) -> (Vec<u8>, usize, usize) {
+        let (w, h) = (rows[0].len(), rows.len());
+        let pw = w + 2;
+        let mut f = vec![0u8; pw * (h + 2)];
+        for (y, r) in rows.iter().enumerate() {
+            for (x, c) in r.bytes().enumerate() {
+                f[(y + 1) * pw + x + 1] = u8::from(c == b'#');
+            }
+        }
+        (f, pw, h + 2)
+    }
+
+    fn signed_area(p: &[[i32; 2]]) -> i64 {
+        let n = p.len();
+        (0..n)
+            .map(|i| {
+                let (a, b) = (p[i], p[(i + 1) % n]);
+                i64::from(a[0]) * i64::from(b[1]) - i64::from(b[0]) * i64::from(a[1])
+            })
+            .sum()
+    }
+
+    #[test]
+    fn borders_have_the_foreground_on_their_left() {
+        let (mut f, pw, ph) = padded(&[
+            "........", ".######.", ".#....#.", ".#....#.", ".#....#.", ".######.", "........",
+        ]);
+        let mut c = Contours::default();
+        find_contours(&mut f, pw, ph, 1, 1000, &mut c);
+        assert_eq!(c.list.len(), 2);
+        let outer = c.list.iter().find(|c| !c.hole).unwrap();
+        let hole = c.list.iter().find(|c| c.hole).unwrap();
+        assert_eq!(outer.len, 18);
+        // Screen coordinates (y down): a positive shoelace sum is clockwise
+        // on screen, i.e. the inside is on the right of the traversal.
+        // Screen coordinates (y down): a negative shoelace sum is
+        // anticlockwise on screen: the outer border has the ring (the
+        // foreground) on its left.
+        assert!(signed_area(c.points_of(outer)) < 0);
+        // The hole's border runs through the ring pixels clockwise: the
+        // hole on its right, the ring again on its left.
+        assert!(signed_area(c.points_of(hole)) > 0);
+        assert!(hole.len >= 12);
+        assert_eq!(c.points_of(outer)[0], [1, 1]);
+    }
+
+    #[test]
+    fn min_len_filters_specks() {
+        let (mut f, pw, ph) = padded(&["#...", "....", "..##"]);
+        let mut c = Contours::default();
+        find_contours(&mut f, pw, ph, 2, 1000, &mut c);
+        assert_eq!(c.list.len(), 1);
+    }
+}

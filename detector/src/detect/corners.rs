@@ -1,0 +1,117 @@
+//! Stage 3b: corners from adjacent lines (second half of the paper's
+//! Algorithm 1).
+//!
+//! Two consecutive lines of a border form a corner when they meet at more
+//! than theta (22.5 degrees), their facing ends are closer than psi, and the
+//! turn from the incoming to the outgoing line is anticlockwise on screen
+//! (negative cross product in y-down coordinates). With lines oriented dark
+//! on the right, that keeps exactly the convex corners of white regions:
+//! the four corners of the white data square, each seen as the meeting of
+//! two sides of the black frame.
+
+use super::lines::{cross, norm, sub, Line, Polygons};
+
+/// A corner: where an incoming line meets an outgoing line.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Corner {
+    /// Intersection of the two lines (working-image coordinates).
+    pub pos: [f64; 2],
+    /// Direction of the incoming line (arriving at the corner).
+    pub din: [f64; 2],
+    /// Direction of the outgoing line (leaving the corner).
+    pub dout: [f64; 2],
+    /// Index of the incoming line.
+    pub lin: u32,
+    /// Index of the outgoing line.
+    pub lout: u32,
+    /// Contour the lines came from.
+    pub contour: u32,
+}
+
+/// Intersection of the line through `p` with direction `d` and the line
+/// through `q` with direction `e`; `None` when (nearly) parallel.
+#[inline]
+pub(crate) fn intersect(p: [f64; 2], d: [f64; 2], q: [f64; 2], e: [f64; 2]) -> Option<[f64; 2]> {
+    let den = cross(d, e);
+    if den.abs() < 1e-6 * norm(d) * norm(e) {
+        return None;
+    }
+    let t = cross(sub(q, p), e) / den;
+    Some([p[0] + t * d[0], p[1] + t * d[1]])
+}
+
+/// Corner-forming parameters.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct CornerParams {
+    /// Sine of theta, the smallest angle between the two lines.
+    pub sin_min_angle: f64,
+    /// psi: largest gap between the facing line ends.
+    pub max_gap: f64,
+}
+
+fn corner(
+    lines: &[Line],
+    a: usize,
+    b: usize,
+    contour: u32,
+    params: &CornerParams,
+) -> Option<Corner> {
+    let (l, m) = (&lines[a], &lines[b]);
+    let s = cross(l.dir, m.dir);
+    // Angle between the directions above theta (and below 180 - theta:
+    // hairpins are not corners).
+    if s.abs() < params.sin_min_angle {
+        return None;
+    }
+    let d1 = norm(sub(l.pe, m.ps));
+    let d2 = norm(sub(l.ps, m.pe));
+    let (lin, lout) = if d1 < d2 && d1 < params.max_gap {
+        (a, b)
+    } else if d2 < d1 && d2 < params.max_gap {
+        (b, a)
+    } else {
+        return None;
+    };
+    let (li, lo) = (&lines[lin], &lines[lout]);
+    if cross(li.dir, lo.dir) >= 0.0 {
+        return None;
+    }
+    let pos = intersect(li.pe, li.dir, lo.ps, lo.dir)?;
+    // The corner must be near the facing ends (a shallow intersection far
+    // away is not a corner).
+    let reach = 2.0 * params.max_gap;
+    if norm(sub(pos, li.pe)) > reach || norm(sub(pos, lo.ps)) > reach {
+        return None;
+    }
+    Some(Corner {
+        pos,
+        din: li.dir,
+        dout: lo.dir,
+        lin: lin as u32,
+        lout: lout as u32,
+        contour,
+    })
+}
+
+/// Forms the corners of every contour's consecutive lines (cyclically).
+pub(crate) fn find_corners(polys: &Polygons, params: &CornerParams, out: &mut Vec<Corner>) {
+    out.clear();
+    for (ci, &(l0, l1)) in polys.line_ranges.iter().enumerate() {
+        let (l0, l1) = (l0 as usize, l1 as usize);
+        let k = l1 - l0;
+        if k < 2 {
+            continue;
+        }
+        for i in 0..k {
+            // With two lines only, one pair.
+            if k == 2 && i == 1 {
+                break;
+            }
+            let a = l0 + i;
+            let b = l0 + (i + 1) % k;
+            if let Some(c) = corner(&polys.lines, a, b, ci as u32, params) {
+                out.push(c);
+            }
+        }
+    }
+}

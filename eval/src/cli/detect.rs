@@ -1,0 +1,294 @@
+//! `coppertag detect`: find CopperTags in image files.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use clap::Args;
+use coppertag::pose::{tag_pose, Intrinsics, TagPose};
+use coppertag::{Detection, Detector, DetectorConfig};
+use image::{GrayImage, Rgb, RgbImage};
+use serde::Serialize;
+
+use super::output::write_atomic_with;
+
+#[derive(Args, Debug)]
+#[command(after_help = "Examples:\n  \
+    coppertag detect photo.png\n  \
+    coppertag detect frames/*.png --family ct14 --json\n  \
+    coppertag detect photo.png --draw annotated.png\n  \
+    coppertag detect a.png b.png --draw 'out/{name}-tags.png'\n  \
+    coppertag detect photo.png --json --fx 2730 --fy 2730 --cx 959.5 --cy 539.5 --tag-size 0.05")]
+pub struct DetectArgs {
+    /// Image files (PNG or JPEG; colour images are converted to grey).
+    #[arg(required = true)]
+    images: Vec<PathBuf>,
+
+    /// Families to look for, comma separated.
+    #[arg(long, default_value = "ct14,ct8", value_delimiter = ',')]
+    family: Vec<String>,
+
+    /// Print one JSON line per image instead of text.
+    #[arg(long)]
+    json: bool,
+
+    /// Write each image with the detections drawn over it (corners, edges,
+    /// ids; estimated corners hollow). With several images the path must
+    /// contain '{name}', replaced by each image's file stem.
+    #[arg(long, value_name = "OUT")]
+    draw: Option<PathBuf>,
+
+    /// Downsampling before the quad search: 1 or 2 (default 2; use 1 for
+    /// tags whose data square is under about 40 px).
+    #[arg(long, default_value_t = 2)]
+    downsample: u32,
+
+    /// Report only four-corner tags (no recovery of hidden corners).
+    #[arg(long)]
+    no_occlusion: bool,
+
+    /// Focal length x in pixels (pose needs --fx --fy --cx --cy --tag-size).
+    #[arg(long, requires_all = ["fy", "cx", "cy", "tag_size"])]
+    fx: Option<f64>,
+    /// Focal length y in pixels.
+    #[arg(long, requires = "fx")]
+    fy: Option<f64>,
+    /// Principal point x (pixel-centre coordinates).
+    #[arg(long, requires = "fx")]
+    cx: Option<f64>,
+    /// Principal point y.
+    #[arg(long, requires = "fx")]
+    cy: Option<f64>,
+    /// Side of the white data square in metres (half the printed tag size).
+    #[arg(long, requires = "fx")]
+    tag_size: Option<f64>,
+}
+
+#[derive(Serialize)]
+struct JsonDetection<'a> {
+    family: &'a str,
+    id: u64,
+    corners: [[f64; 2]; 4],
+    estimated: [bool; 4],
+    corrected: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pose: Option<TagPose>,
+}
+
+#[derive(Serialize)]
+struct JsonImage<'a> {
+    image: &'a str,
+    ms: f64,
+    detections: Vec<JsonDetection<'a>>,
+}
+
+/// Runs the subcommand. Every image is processed; unreadable ones are
+/// reported on stderr and make the command fail at the end.
+pub fn run(args: &DetectArgs) -> Result<()> {
+    let config = DetectorConfig {
+        families: args.family.clone(),
+        downsample: args.downsample,
+        recover_occluded: !args.no_occlusion,
+        ..DetectorConfig::default()
+    };
+    let mut detector = Detector::new(config).context("invalid detector settings")?;
+    if let Some(out) = &args.draw {
+        if args.images.len() > 1 && !out.to_string_lossy().contains("{name}") {
+            bail!(
+                "--draw {}: with several images the path must contain '{{name}}'",
+                out.display()
+            );
+        }
+    }
+    let intrinsics = match (args.fx, args.fy, args.cx, args.cy) {
+        (Some(fx), Some(fy), Some(cx), Some(cy)) => Some(Intrinsics { fx, fy, cx, cy }),
+        _ => None,
+    };
+    let mut failed: Vec<String> = Vec::new();
+    for path in &args.images {
+        if let Err(e) = one_image(args, &mut detector, path, intrinsics.as_ref()) {
+            eprintln!("error: {e:#}");
+            failed.push(path.display().to_string());
+        }
+    }
+    if !failed.is_empty() {
+        bail!(
+            "{} of {} images failed: {}",
+            failed.len(),
+            args.images.len(),
+            failed.join(", ")
+        );
+    }
+    Ok(())
+}
+
+fn one_image(
+    args: &DetectArgs,
+    detector: &mut Detector,
+    path: &Path,
+    intrinsics: Option<&Intrinsics>,
+) -> Result<()> {
+    let img = image::open(path)
+        .with_context(|| format!("cannot read image {}", path.display()))?
+        .to_luma8();
+    let t = Instant::now();
+    let found = detector.detect(&img);
+    let ms = t.elapsed().as_secs_f64() * 1e3;
+    let poses: Vec<Option<TagPose>> = found
+        .iter()
+        .map(|d| {
+            let k = intrinsics?;
+            tag_pose(&d.corners, k, args.tag_size?).ok()
+        })
+        .collect();
+    let name = path.display().to_string();
+    if args.json {
+        let line = JsonImage {
+            image: &name,
+            ms,
+            detections: found
+                .iter()
+                .zip(&poses)
+                .map(|(d, p)| JsonDetection {
+                    family: d.family,
+                    id: d.id,
+                    corners: d.corners,
+                    estimated: d.estimated,
+                    corrected: d.corrected,
+                    pose: *p,
+                })
+                .collect(),
+        };
+        println!("{}", serde_json::to_string(&line)?);
+    } else {
+        println!("{name}: {} tag(s) in {ms:.2} ms", found.len());
+        for (d, p) in found.iter().zip(&poses) {
+            let corners: Vec<String> = d
+                .corners
+                .iter()
+                .zip(d.estimated)
+                .map(|(c, e)| format!("({:.2}, {:.2}){}", c[0], c[1], if e { "*" } else { "" }))
+                .collect();
+            println!(
+                "  {} {}  corrected {}  corners {}",
+                d.family,
+                d.id,
+                d.corrected,
+                corners.join(" ")
+            );
+            if let Some(p) = p {
+                let t = p.best.translation;
+                println!(
+                    "    position [{:.4}, {:.4}, {:.4}] m, reprojection {:.3} px",
+                    t[0], t[1], t[2], p.best.reprojection_px
+                );
+            }
+        }
+    }
+    if let Some(out) = &args.draw {
+        let stem = path
+            .file_stem()
+            .map_or("image".into(), |s| s.to_string_lossy().into_owned());
+        let out = PathBuf::from(out.to_string_lossy().replace("{name}", &stem));
+        let canvas = draw(&img, &found);
+        let format = image::ImageFormat::from_path(&out).unwrap_or(image::ImageFormat::Png);
+        write_atomic_with(&out, |w| canvas.write_to(w, format).map_err(Into::into))?;
+    }
+    Ok(())
+}
+
+/// The image in colour with the detections drawn over it.
+fn draw(img: &GrayImage, found: &[Detection]) -> RgbImage {
+    let mut c = RgbImage::from_fn(img.width(), img.height(), |x, y| {
+        let v = img.get_pixel(x, y).0[0];
+        Rgb([v, v, v])
+    });
+    let scale = f64::from(img.width().max(img.height())) / 1000.0;
+    let thick = (1.5 * scale).max(1.0);
+    for d in found {
+        let side = (0..4)
+            .map(|i| {
+                let (a, b) = (d.corners[i], d.corners[(i + 1) % 4]);
+                (a[0] - b[0]).hypot(a[1] - b[1])
+            })
+            .fold(0.0, f64::max);
+        for i in 0..4 {
+            let colour = if d.estimated[i] || d.estimated[(i + 1) % 4] {
+                Rgb([255, 160, 0])
+            } else {
+                Rgb([0, 220, 0])
+            };
+            line(&mut c, d.corners[i], d.corners[(i + 1) % 4], thick, colour);
+        }
+        // Corner 0 (TL) red, the others blue; estimated corners hollow.
+        for (i, p) in d.corners.iter().enumerate() {
+            let colour = if i == 0 {
+                Rgb([255, 0, 0])
+            } else {
+                Rgb([0, 90, 255])
+            };
+            disc(&mut c, *p, (0.04 * side).max(2.0), d.estimated[i], colour);
+        }
+        // The id, drawn with the tag's own digit strokes at the centre.
+        let h = 0.25 * side;
+        let (strokes, width) = coppertag::digits::text_strokes(d.id, 0.0, 0.0, 1.0);
+        for s in strokes {
+            for w in s.windows(2) {
+                let m = |p: [f64; 2]| [d.center[0] + p[0] * h, d.center[1] + (p[1] + 0.5) * h];
+                line(
+                    &mut c,
+                    m(w[0]),
+                    m(w[1]),
+                    (width * h / 2.0).max(1.0),
+                    Rgb([255, 0, 255]),
+                );
+            }
+        }
+    }
+    c
+}
+
+fn put(c: &mut RgbImage, x: f64, y: f64, colour: Rgb<u8>) {
+    if x >= -0.5 && y >= -0.5 {
+        let (xi, yi) = (x.round() as u32, y.round() as u32);
+        if xi < c.width() && yi < c.height() {
+            c.put_pixel(xi, yi, colour);
+        }
+    }
+}
+
+fn line(c: &mut RgbImage, a: [f64; 2], b: [f64; 2], thick: f64, colour: Rgb<u8>) {
+    let len = (b[0] - a[0]).hypot(b[1] - a[1]);
+    if !len.is_finite() || len > 1e5 {
+        return;
+    }
+    let steps = (len * 2.0).ceil().max(1.0) as usize;
+    let r = (thick / 2.0).max(0.5);
+    for k in 0..=steps {
+        let t = k as f64 / steps as f64;
+        let (x, y) = (a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1]));
+        let ri = r.ceil() as i32;
+        for dy in -ri..=ri {
+            for dx in -ri..=ri {
+                if f64::from(dx * dx + dy * dy) <= r * r + 0.25 {
+                    put(c, x + f64::from(dx), y + f64::from(dy), colour);
+                }
+            }
+        }
+    }
+}
+
+fn disc(c: &mut RgbImage, p: [f64; 2], r: f64, hollow: bool, colour: Rgb<u8>) {
+    if !r.is_finite() || r > 1e4 {
+        return;
+    }
+    let ri = r.ceil() as i32;
+    for dy in -ri..=ri {
+        for dx in -ri..=ri {
+            let d = f64::from(dx).hypot(f64::from(dy));
+            if d <= r && (!hollow || d >= r - 1.5) {
+                put(c, p[0] + f64::from(dx), p[1] + f64::from(dy), colour);
+            }
+        }
+    }
+}

@@ -1,0 +1,149 @@
+//! `coppertag eval`: metrics of runs against their datasets' ground truth.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+use coppertag_eval::metrics::{evaluate, MatchRule, Summary};
+use coppertag_eval::report::write_atomic;
+use coppertag_eval::runlog::RunLog;
+use coppertag_eval::truth::Dataset;
+
+#[derive(Args, Debug)]
+#[command(after_help = "Example:\n  coppertag eval runs/*.mcap -o results/\n\n\
+    Writes results/summary.json (every figure, with per-image outcomes) and results/summary.csv.\n\
+    A run that cannot be read, or whose dataset is gone, is reported and skipped; the others are\n\
+    still evaluated and written, and the exit code is 2.")]
+pub struct EvalArgs {
+    /// Run logs (MCAP) from `coppertag run`.
+    #[arg(required = true)]
+    pub runs: Vec<PathBuf>,
+
+    /// Output directory for summary.json and summary.csv.
+    #[arg(short, long, default_value = "results")]
+    pub output: PathBuf,
+
+    /// Dataset directory to use instead of the one recorded in each run.
+    #[arg(long)]
+    pub dataset: Option<PathBuf>,
+
+    /// Smallest corner distance, px, within which a marker counts as found.
+    #[arg(long, default_value_t = 3.0)]
+    pub match_px: f64,
+
+    /// Corner distance as a fraction of the marker side; the larger of the
+    /// two applies.
+    #[arg(long, default_value_t = 0.05)]
+    pub match_fraction: f64,
+
+    /// Print the summaries (without per-image rows) as JSON on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn one(path: &Path, dataset: Option<&Path>, rule: MatchRule) -> Result<Summary> {
+    let run = RunLog::read(path)?;
+    let dir = dataset.map_or_else(|| PathBuf::from(&run.info.dataset_dir), Path::to_path_buf);
+    let ds = Dataset::open(&dir)
+        .with_context(|| format!("run {} needs its dataset {}", path.display(), dir.display()))?;
+    Ok(evaluate(&run, &ds, rule))
+}
+
+/// Evaluates runs; returns the summaries and the errors, one per bad run.
+pub fn evaluate_all(
+    runs: &[PathBuf],
+    dataset: Option<&Path>,
+    rule: MatchRule,
+) -> (Vec<Summary>, Vec<String>) {
+    let mut out = Vec::new();
+    let mut errors = Vec::new();
+    for path in runs {
+        match one(path, dataset, rule) {
+            Ok(s) => out.push(s),
+            Err(e) => errors.push(format!("{e:#}")),
+        }
+    }
+    (out, errors)
+}
+
+/// Writes summary.json and summary.csv into `dir`.
+pub fn write_summaries(dir: &Path, summaries: &[Summary]) -> Result<()> {
+    let json = serde_json::to_string_pretty(&serde_json::json!({ "summaries": summaries }))?;
+    write_atomic(&dir.join("summary.json"), json.as_bytes())?;
+    let mut csv = String::from(
+        "detector,dataset,marker,images,image_errors,markers,found,detection_rate,wrong_ids,false_positives,duplicates,mislocated,\
+         corner_real_n,corner_real_mean,corner_real_median,corner_real_p95,corner_real_max,\
+         corner_est_n,corner_est_mean,corner_est_median,corner_est_p95,corner_est_max,\
+         time_median_ms,time_mean_ms,time_p95_ms,cpu_percent_core,peak_memory_mib\n",
+    );
+    for s in summaries {
+        let (r, e, t) = (&s.corner_error_real, &s.corner_error_estimated, &s.time_ms);
+        csv.push_str(&format!(
+            "{},{},{},{},{},{},{},{:.6},{},{},{},{},{},{:.4},{:.4},{:.4},{:.4},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.2},{:.1}\n",
+            s.detector, s.dataset, s.marker, s.images, s.image_errors, s.markers, s.found, s.detection_rate,
+            s.wrong_ids, s.false_positives, s.duplicates, s.mislocated,
+            r.n, r.mean, r.median, r.p95, r.max, e.n, e.mean, e.median, e.p95, e.max,
+            t.median, t.mean, t.p95, s.cpu_percent, s.peak_memory_mib
+        ));
+    }
+    write_atomic(&dir.join("summary.csv"), csv.as_bytes())?;
+    Ok(())
+}
+
+/// Reads summary.json.
+pub fn read_summaries(path: &Path) -> Result<Vec<Summary>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    #[derive(serde::Deserialize)]
+    struct File {
+        summaries: Vec<Summary>,
+    }
+    let f: File = serde_json::from_str(&text)
+        .with_context(|| format!("{}: not a summary file", path.display()))?;
+    Ok(f.summaries)
+}
+
+/// Runs the subcommand.
+pub fn run(args: &EvalArgs) -> Result<()> {
+    if !(args.match_px.is_finite()
+        && args.match_px > 0.0
+        && args.match_fraction.is_finite()
+        && args.match_fraction >= 0.0)
+    {
+        anyhow::bail!("--match-px must be > 0 and --match-fraction >= 0");
+    }
+    let rule = MatchRule {
+        min_px: args.match_px,
+        side_fraction: args.match_fraction,
+    };
+    let (summaries, errors) = evaluate_all(&args.runs, args.dataset.as_deref(), rule);
+    for e in &errors {
+        eprintln!("error: {e}");
+    }
+    if !summaries.is_empty() {
+        write_summaries(&args.output, &summaries)?;
+    }
+    if args.json {
+        let mut brief = summaries.clone();
+        for s in &mut brief {
+            s.per_image.clear();
+        }
+        println!("{}", serde_json::to_string(&brief)?);
+    } else {
+        for s in &summaries {
+            eprintln!(
+                "{:>10} {:<28} rate {:>6.2}%  corners median {:.3} px p95 {:.3} px  time median {:.2} ms  wrong {} fp {} dup {}",
+                s.detector, s.dataset, 100.0 * s.detection_rate, s.corner_error_real.median, s.corner_error_real.p95,
+                s.time_ms.median, s.wrong_ids, s.false_positives, s.duplicates
+            );
+        }
+    }
+    if !errors.is_empty() {
+        anyhow::bail!(
+            "{} of {} runs could not be evaluated",
+            errors.len(),
+            args.runs.len()
+        );
+    }
+    Ok(())
+}

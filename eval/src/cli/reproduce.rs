@@ -1,0 +1,202 @@
+//! `coppertag reproduce`: datasets -> runs -> metrics -> report, from
+//! nothing, for every spec under the given directories.
+//!
+//! A failing step (a peer that crashes, a dataset that will not render) is
+//! reported and skipped; everything else is still produced, and the command
+//! exits 2 at the end so the failure is not missed.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result};
+use clap::Args;
+use coppertag_eval::metrics::MatchRule;
+use coppertag_eval::report::{write_atomic, write_report, Machine};
+use coppertag_eval::resources;
+use coppertag_eval::runlog;
+use coppertag_eval::runner::{self, DetectorSpec};
+use coppertag_eval::truth::Dataset;
+use coppertag_synth::{generate, DatasetSpec, GenerateOptions};
+
+use super::evaluate::{evaluate_all, write_summaries};
+use super::progress::bar;
+use super::report::preamble;
+
+#[derive(Args, Debug)]
+#[command(after_help = "Examples:\n  \
+    coppertag reproduce                      # everything, into build/ and reports/\n  \
+    coppertag reproduce --quick --work build/quick --reports build/quick/reports\n\n\
+    Spec files are datasets/<dir>/<marker>-<name>.toml; <marker> (coppertag, apriltag3, aruco3, stag)\n\
+    picks the detector that runs on the dataset.")]
+pub struct ReproduceArgs {
+    /// A tenth of every sweep (every 10th image).
+    #[arg(long)]
+    pub quick: bool,
+
+    /// Directories of dataset specs, in order.
+    #[arg(long, num_args = 1.., default_values = ["datasets/paper", "datasets/robustness", "datasets/challenge"])]
+    pub specs: Vec<PathBuf>,
+
+    /// Working directory for datasets, runs and results (replaced).
+    #[arg(long, default_value = "build")]
+    pub work: PathBuf,
+
+    /// Where the tables and figures go.
+    #[arg(long, default_value = "reports")]
+    pub reports: PathBuf,
+
+    /// Python interpreter for the peer adapters.
+    #[arg(long, default_value = ".venv/bin/python")]
+    pub python: PathBuf,
+
+    /// Directory of the peer adapters.
+    #[arg(long, default_value = "eval/peers")]
+    pub peers: PathBuf,
+
+    /// Only these marker systems (default: all four).
+    #[arg(long, value_delimiter = ',')]
+    pub only: Vec<String>,
+
+    /// No progress bars.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+/// Datasets this small are rendered whole even in quick mode.
+const QUICK_KEEP_WHOLE: usize = 50;
+
+fn spec_files(dirs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for dir in dirs {
+        if !dir.exists() {
+            continue;
+        }
+        let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+            .with_context(|| format!("cannot list {}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .collect();
+        files.sort();
+        out.extend(files);
+    }
+    Ok(out)
+}
+
+fn marker_of(spec: &Path) -> String {
+    let stem = spec
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    stem.split('-').next().unwrap_or_default().to_string()
+}
+
+/// Runs the subcommand.
+pub fn run(args: &ReproduceArgs) -> Result<()> {
+    let specs: Vec<PathBuf> = spec_files(&args.specs)?
+        .into_iter()
+        .filter(|s| args.only.is_empty() || args.only.contains(&marker_of(s)))
+        .collect();
+    if specs.is_empty() {
+        anyhow::bail!("no dataset specs found in {:?}", args.specs);
+    }
+    let every = if args.quick { 10 } else { 1 };
+    let mut failures = Vec::new();
+    let mut runs = Vec::new();
+    std::fs::create_dir_all(&args.work)
+        .with_context(|| format!("cannot create {}", args.work.display()))?;
+    for (i, spec_path) in specs.iter().enumerate() {
+        let stem = spec_path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let label = format!("[{}/{}] {stem}", i + 1, specs.len());
+        let dataset_dir = args.work.join("datasets").join(&stem);
+        let rendered = DatasetSpec::load(spec_path)
+            .map_err(anyhow::Error::from)
+            .and_then(|spec| {
+                // Small sets (the 20 occlusion images) are kept whole in quick
+                // mode: a tenth of them says nothing.
+                let every = if spec.image_count() <= QUICK_KEEP_WHOLE {
+                    1
+                } else {
+                    every
+                };
+                let pb = bar(
+                    spec.image_count().div_ceil(every),
+                    &format!("{label} render"),
+                    args.quiet,
+                );
+                let r = generate(
+                    &spec,
+                    &dataset_dir,
+                    &GenerateOptions { every, force: true },
+                    &|done, _| pb.set_position(done as u64),
+                );
+                pb.finish_and_clear();
+                r.map_err(anyhow::Error::from)
+            });
+        if let Err(e) = rendered {
+            failures.push(format!("{}: {e:#}", spec_path.display()));
+            continue;
+        }
+        let marker = marker_of(spec_path);
+        let detector = match DetectorSpec::by_name(&marker, &args.python, &args.peers) {
+            Ok(d) => d,
+            Err(e) => {
+                failures.push(format!("{}: {e}", spec_path.display()));
+                continue;
+            }
+        };
+        let result = Dataset::open(&dataset_dir)
+            .map_err(anyhow::Error::from)
+            .and_then(|ds| {
+                let pb = bar(ds.images.len(), &format!("{label} detect"), args.quiet);
+                let out = runner::run(&detector, &ds, |d, _| pb.set_position(d as u64));
+                pb.finish_and_clear();
+                let out = out?;
+                let path = args.work.join("runs").join(format!("{stem}.mcap"));
+                runlog::save(&path, &out)?;
+                Ok(path)
+            });
+        match result {
+            Ok(path) => runs.push(path),
+            Err(e) => failures.push(format!("{stem}: {e:#}")),
+        }
+        if !args.quiet {
+            eprintln!("{label}: done");
+        }
+    }
+    let (summaries, errors) = evaluate_all(&runs, None, MatchRule::default());
+    failures.extend(errors);
+    let results = args.work.join("results");
+    if !summaries.is_empty() {
+        write_summaries(&results, &summaries)?;
+        let machine = Machine {
+            cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            memory: resources::total_memory().unwrap_or(0),
+        };
+        let made_by = if args.quick {
+            "make reproduce QUICK=1"
+        } else {
+            "make reproduce"
+        };
+        let md = write_report(
+            &summaries,
+            &args.reports,
+            machine,
+            &preamble(&summaries, made_by),
+        )?;
+        write_atomic(&args.reports.join("README.md"), md.as_bytes())?;
+        eprintln!(
+            "wrote {} and {}",
+            results.join("summary.json").display(),
+            args.reports.join("README.md").display()
+        );
+    }
+    if !failures.is_empty() {
+        for f in &failures {
+            eprintln!("error: {f}");
+        }
+        anyhow::bail!("{} step(s) failed; the rest was written", failures.len());
+    }
+    Ok(())
+}

@@ -1,0 +1,80 @@
+//! The line protocol every detector speaks (ours and the peers' adapters in
+//! `eval/peers/`): image paths in, one JSON line out per image, in the
+//! `coppertag detect --json` format. See `eval/peers/README.md`.
+
+use serde::{Deserialize, Serialize};
+
+/// One detected marker as the protocol carries it.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionRecord {
+    /// Family or codebook name (`ct14`, `tag36h11`, `aruco_mip_36h12`,
+    /// `stag_hd21`).
+    pub family: String,
+    /// Marker id.
+    pub id: u64,
+    /// Corners TL, BL, BR, TR in the marker's own frame, pixel-centre
+    /// coordinates.
+    pub corners: [[f64; 2]; 4],
+    /// Which corners were estimated rather than observed.
+    #[serde(default)]
+    pub estimated: [bool; 4],
+    /// Symbols or bits corrected, when the detector tells.
+    #[serde(default)]
+    pub corrected: Option<u64>,
+}
+
+/// One protocol line: the result for one image.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ImageResult {
+    /// The image path as sent.
+    pub image: String,
+    /// Detection time in milliseconds, measured around the detect call only.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ms: Option<f64>,
+    /// Detections (empty on error).
+    #[serde(default)]
+    pub detections: Vec<DetectionRecord>,
+    /// Set when the detector could not process the image.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+impl ImageResult {
+    /// Parses and checks one protocol line: it must be a JSON object with
+    /// finite coordinates and either `ms` or `error`.
+    pub fn parse(line: &str) -> std::result::Result<Self, String> {
+        let r: ImageResult = serde_json::from_str(line.trim()).map_err(|e| e.to_string())?;
+        if r.error.is_none() && r.ms.is_none() {
+            return Err("line has neither \"ms\" nor \"error\"".into());
+        }
+        if let Some(ms) = r.ms {
+            if !(ms.is_finite() && ms >= 0.0) {
+                return Err(format!("bad time {ms}"));
+            }
+        }
+        for d in &r.detections {
+            if d.corners.iter().flatten().any(|v| !v.is_finite()) {
+                return Err(format!("non-finite corner in detection of id {}", d.id));
+            }
+        }
+        Ok(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parses_adapter_lines() {
+        let line = r#"{"image": "a.png", "ms": 1.5, "detections": [{"family": "tag36h11", "id": 3,
+            "corners": [[1,2],[3,4],[5,6],[7,8]], "estimated": [false,false,false,false], "corrected": null}]}"#;
+        let r = ImageResult::parse(&line.replace('\n', " ")).unwrap();
+        assert_eq!(r.detections[0].id, 3);
+        let err = ImageResult::parse(r#"{"image": "a.png", "error": "cannot read"}"#).unwrap();
+        assert_eq!(err.error.as_deref(), Some("cannot read"));
+        assert!(ImageResult::parse("garbage").is_err());
+        assert!(ImageResult::parse(r#"{"image": "a.png"}"#).is_err());
+        assert!(ImageResult::parse(r#"{"image": "a.png", "ms": -1}"#).is_err());
+    }
+}

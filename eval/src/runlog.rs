@@ -1,0 +1,328 @@
+//! A run as an MCAP file, and reading it back.
+//!
+//! | record | name or topic | content |
+//! |---|---|---|
+//! | metadata | `coppertag.run` | [`RunInfo`]: detector, version, parameters, dataset, machine, date |
+//! | message | `/detections` (`coppertag.Detections`, JSON) | one per image: index, image, ms, detections, error |
+//! | message | `/detections/annotations` (`foxglove.ImageAnnotations`, JSON) | outlines and ids, drawn over the dataset's images |
+//! | metadata | `coppertag.resources` | [`RunResources`]: CPU, memory, wall time |
+//!
+//! Messages carry the dataset's log times (`1 s + index * 100 ms`), so a
+//! run opened beside its dataset's MCAP in Foxglove overlays its images.
+//! Annotation coordinates use Foxglove's convention (origin at the corner of
+//! the top-left pixel): our pixel-centre coordinates plus 0.5.
+
+use std::collections::BTreeMap;
+use std::io::{Seek, Write};
+use std::path::Path;
+
+use mcap::records::{MessageHeader, Metadata};
+use serde::{Deserialize, Serialize};
+use serde_json::json;
+
+use crate::error::{EvalError, Result};
+use crate::protocol::ImageResult;
+use crate::runner::{IndexedResult, RunInfo, RunOutput, RunResources};
+
+/// Log time of image `index`, nanoseconds (the dataset's convention).
+pub fn log_time(index: usize) -> u64 {
+    1_000_000_000 + index as u64 * 100_000_000
+}
+
+/// One `/detections` message.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectionsMessage {
+    /// Image index in the dataset.
+    pub index: usize,
+    /// The protocol line for the image.
+    #[serde(flatten)]
+    pub result: ImageResult,
+}
+
+fn detections_schema() -> serde_json::Value {
+    json!({
+        "title": "coppertag.Detections",
+        "description": "Markers one detector found in one dataset image. Corners TL, BL, BR, TR in pixel-centre coordinates.",
+        "type": "object",
+        "required": ["index", "image", "detections"],
+        "properties": {
+            "index": {"type": "integer", "minimum": 0},
+            "image": {"type": "string"},
+            "ms": {"type": "number", "description": "detection time, ms, around the detect call only"},
+            "error": {"type": "string"},
+            "detections": {"type": "array", "items": {
+                "type": "object",
+                "required": ["family", "id", "corners", "estimated"],
+                "properties": {
+                    "family": {"type": "string"},
+                    "id": {"type": "integer", "minimum": 0},
+                    "corners": {"type": "array", "minItems": 4, "maxItems": 4,
+                        "items": {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}}},
+                    "estimated": {"type": "array", "minItems": 4, "maxItems": 4, "items": {"type": "boolean"}},
+                    "corrected": {"type": ["integer", "null"]}
+                }
+            }}
+        }
+    })
+}
+
+fn annotations_schema() -> serde_json::Value {
+    let point =
+        json!({"type": "object", "properties": {"x": {"type": "number"}, "y": {"type": "number"}}});
+    let colour = json!({"type": "object", "properties": {
+        "r": {"type": "number"}, "g": {"type": "number"}, "b": {"type": "number"}, "a": {"type": "number"}}});
+    let time = json!({"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}});
+    json!({
+        "title": "foxglove.ImageAnnotations",
+        "type": "object",
+        "properties": {
+            "circles": {"type": "array"},
+            "points": {"type": "array", "items": {"type": "object", "properties": {
+                "timestamp": time, "type": {"type": "integer"},
+                "points": {"type": "array", "items": point},
+                "outline_color": colour, "outline_colors": {"type": "array"},
+                "fill_color": colour, "thickness": {"type": "number"}}}},
+            "texts": {"type": "array", "items": {"type": "object", "properties": {
+                "timestamp": time, "position": point, "text": {"type": "string"},
+                "font_size": {"type": "number"}, "text_color": colour, "background_color": colour}}}
+        }
+    })
+}
+
+fn annotations(index: usize, result: &ImageResult) -> serde_json::Value {
+    let t = log_time(index);
+    let ts = json!({"sec": t / 1_000_000_000, "nsec": t % 1_000_000_000});
+    let mut points = Vec::new();
+    let mut texts = Vec::new();
+    for d in &result.detections {
+        let pts: Vec<_> = d
+            .corners
+            .iter()
+            .map(|c| json!({"x": c[0] + 0.5, "y": c[1] + 0.5}))
+            .collect();
+        points.push(json!({
+            "timestamp": ts, "type": 2, "points": pts,
+            "outline_color": {"r": 1.0, "g": 0.55, "b": 0.0, "a": 1.0}, "outline_colors": [],
+            "fill_color": {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.0}, "thickness": 2.0
+        }));
+        // Estimated corners as separate points, so they stand out.
+        let est: Vec<_> = d
+            .corners
+            .iter()
+            .zip(d.estimated)
+            .filter(|(_, e)| *e)
+            .map(|(c, _)| json!({"x": c[0] + 0.5, "y": c[1] + 0.5}))
+            .collect();
+        if !est.is_empty() {
+            points.push(json!({
+                "timestamp": ts, "type": 1, "points": est,
+                "outline_color": {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}, "outline_colors": [],
+                "fill_color": {"r": 1.0, "g": 0.0, "b": 0.0, "a": 1.0}, "thickness": 8.0
+            }));
+        }
+        texts.push(json!({
+            "timestamp": ts,
+            "position": {"x": d.corners[0][0] + 0.5, "y": d.corners[0][1] + 0.5},
+            "text": format!("{} {}", d.family, d.id), "font_size": 16.0,
+            "text_color": {"r": 1.0, "g": 0.55, "b": 0.0, "a": 1.0},
+            "background_color": {"r": 0.0, "g": 0.0, "b": 0.0, "a": 0.6}
+        }));
+    }
+    json!({"circles": [], "points": points, "texts": texts})
+}
+
+fn to_map<T: Serialize>(value: &T) -> BTreeMap<String, String> {
+    let v = serde_json::to_value(value).unwrap_or_default();
+    v.as_object()
+        .map(|o| {
+            o.iter()
+                .map(|(k, v)| {
+                    (
+                        k.clone(),
+                        v.as_str().map_or_else(|| v.to_string(), str::to_string),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Writes a run as MCAP to any seekable writer.
+pub fn write_run<W: Write + Seek>(
+    w: W,
+    run: &RunOutput,
+) -> std::result::Result<(), mcap::McapError> {
+    let mut out = mcap::WriteOptions::new()
+        .compression(Some(mcap::Compression::Zstd))
+        .profile("")
+        .library(concat!("coppertag-eval ", env!("CARGO_PKG_VERSION")))
+        .create(w)?;
+    out.write_metadata(&Metadata {
+        name: "coppertag.run".into(),
+        metadata: to_map(&run.info),
+    })?;
+    let det_schema = out.add_schema(
+        "coppertag.Detections",
+        "jsonschema",
+        detections_schema().to_string().as_bytes(),
+    )?;
+    let det = out.add_channel(det_schema, "/detections", "json", &BTreeMap::new())?;
+    let ann_schema = out.add_schema(
+        "foxglove.ImageAnnotations",
+        "jsonschema",
+        annotations_schema().to_string().as_bytes(),
+    )?;
+    let ann = out.add_channel(
+        ann_schema,
+        "/detections/annotations",
+        "json",
+        &BTreeMap::new(),
+    )?;
+    for (seq, r) in run.results.iter().enumerate() {
+        let t = log_time(r.index);
+        let header = |channel_id| MessageHeader {
+            channel_id,
+            sequence: seq as u32,
+            log_time: t,
+            publish_time: t,
+        };
+        let msg = DetectionsMessage {
+            index: r.index,
+            result: r.result.clone(),
+        };
+        out.write_to_known_channel(
+            &header(det),
+            serde_json::to_string(&msg).unwrap_or_default().as_bytes(),
+        )?;
+        out.write_to_known_channel(
+            &header(ann),
+            annotations(r.index, &r.result).to_string().as_bytes(),
+        )?;
+    }
+    out.write_metadata(&Metadata {
+        name: "coppertag.resources".into(),
+        metadata: to_map(&run.resources),
+    })?;
+    // finish() reports errors that dropping the writer would swallow.
+    out.finish()?;
+    Ok(())
+}
+
+/// Writes a run to `path` atomically.
+pub fn save(path: &Path, run: &RunOutput) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".run-")
+        .suffix(".mcap.tmp")
+        .tempfile_in(dir)
+        .map_err(|e| EvalError::io(dir, e))?;
+    write_run(std::io::BufWriter::new(tmp.as_file_mut()), run)
+        .map_err(|e| EvalError::bad(path, e.to_string()))?;
+    tmp.persist(path)
+        .map_err(|e| EvalError::io(path, e.error))?;
+    Ok(())
+}
+
+fn from_map<T: for<'de> Deserialize<'de>>(
+    path: &Path,
+    name: &str,
+    m: &BTreeMap<String, String>,
+) -> Result<T> {
+    let obj: serde_json::Map<String, serde_json::Value> = m
+        .iter()
+        .map(|(k, v)| {
+            let val = serde_json::from_str::<serde_json::Value>(v)
+                .ok()
+                .filter(|x| !x.is_string() && !x.is_object() && !x.is_array())
+                .unwrap_or_else(|| serde_json::Value::String(v.clone()));
+            (k.clone(), val)
+        })
+        .collect();
+    serde_json::from_value(serde_json::Value::Object(obj))
+        .map_err(|e| EvalError::bad(path, format!("metadata {name}: {e}")))
+}
+
+/// A run read back from MCAP.
+#[derive(Debug, Clone)]
+pub struct RunLog {
+    /// Facts about the run.
+    pub info: RunInfo,
+    /// Resource use.
+    pub resources: RunResources,
+    /// One message per image, in log order.
+    pub images: Vec<DetectionsMessage>,
+}
+
+impl RunLog {
+    /// Reads and checks a run file. A truncated or foreign MCAP file, or
+    /// one without the run's records, is an error naming the file.
+    pub fn read(path: &Path) -> Result<Self> {
+        let bytes = std::fs::read(path).map_err(|e| EvalError::io(path, e))?;
+        let bad = |m: String| EvalError::bad(path, m);
+        if !bytes.starts_with(mcap::MAGIC) {
+            return Err(bad("not an MCAP file".into()));
+        }
+        if !bytes.ends_with(mcap::MAGIC) {
+            return Err(bad("truncated MCAP file (no closing magic)".into()));
+        }
+        let mut info = None;
+        let mut resources = None;
+        for rec in
+            mcap::read::LinearReader::new(&bytes).map_err(|e| bad(format!("corrupt MCAP: {e}")))?
+        {
+            if let mcap::records::Record::Metadata(m) =
+                rec.map_err(|e| bad(format!("corrupt MCAP: {e}")))?
+            {
+                match m.name.as_str() {
+                    "coppertag.run" => {
+                        info = Some(from_map::<RunInfo>(path, &m.name, &m.metadata)?)
+                    }
+                    "coppertag.resources" => {
+                        resources = Some(from_map::<RunResources>(path, &m.name, &m.metadata)?)
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let info =
+            info.ok_or_else(|| bad("not a coppertag run: no coppertag.run metadata".into()))?;
+        let resources = resources
+            .ok_or_else(|| bad("incomplete run: no coppertag.resources metadata".into()))?;
+        let mut images = Vec::new();
+        for msg in
+            mcap::MessageStream::new(&bytes).map_err(|e| bad(format!("corrupt MCAP: {e}")))?
+        {
+            let msg = msg.map_err(|e| bad(format!("corrupt MCAP: {e}")))?;
+            if msg.channel.topic != "/detections" {
+                continue;
+            }
+            if msg.channel.schema.as_ref().map(|s| s.name.as_str()) != Some("coppertag.Detections")
+            {
+                return Err(bad("/detections has the wrong schema".into()));
+            }
+            let m: DetectionsMessage = serde_json::from_slice(&msg.data)
+                .map_err(|e| bad(format!("bad /detections message {}: {e}", msg.sequence)))?;
+            images.push(m);
+        }
+        Ok(Self {
+            info,
+            resources,
+            images,
+        })
+    }
+
+    /// The results as the runner produced them.
+    pub fn results(&self) -> Vec<IndexedResult> {
+        self.images
+            .iter()
+            .map(|m| IndexedResult {
+                index: m.index,
+                result: m.result.clone(),
+            })
+            .collect()
+    }
+}

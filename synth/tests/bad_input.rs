@@ -1,0 +1,208 @@
+//! Bad specs and pattern files are rejected with the file, line and column
+//! of the problem.
+
+use std::path::{Path, PathBuf};
+
+use coppertag_synth::{DatasetSpec, SynthError};
+
+const GOOD: &str = r#"name = "t"
+seed = 3
+
+[camera]
+width = 640
+height = 480
+focal_length_mm = 8.0
+pixel_pitch_um = 4.0
+
+[[markers]]
+system = "coppertag"
+id = 42
+size_m = 0.1
+translation = [0.0, 0.0, 1.0]
+rotation = [0.0, 0.0, 0.0]
+
+[sweep]
+param = "z"
+from = 0.5
+to = 1.5
+step = 0.1
+"#;
+
+/// Loads `text` as `dir/spec.toml`; returns the error's message and its
+/// (line, column).
+fn error_of(dir: &Path, text: &str) -> (String, usize, usize) {
+    let path = dir.join("spec.toml");
+    std::fs::write(&path, text).unwrap();
+    match DatasetSpec::load(&path) {
+        Ok(_) => panic!("accepted:\n{text}"),
+        Err(e) => {
+            let msg = e.to_string();
+            assert!(
+                msg.starts_with(&path.display().to_string()),
+                "names the file: {msg}"
+            );
+            match e {
+                SynthError::Input { line, column, .. } => (msg, line, column),
+                other => panic!("not a positioned input error: {other}"),
+            }
+        }
+    }
+}
+
+fn line_of(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).unwrap() + 1
+}
+
+#[test]
+fn the_good_spec_loads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("spec.toml");
+    std::fs::write(&path, GOOD).unwrap();
+    assert_eq!(DatasetSpec::load(&path).unwrap().image_count(), 11);
+}
+
+#[test]
+fn unknown_keys_are_rejected_where_they_are() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (old, new, key) in [
+        ("seed = 3", "seed = 3\ncolour = \"red\"", "colour"),
+        ("size_m = 0.1", "size_m = 0.1\nsize = 0.2", "size"),
+        ("step = 0.1", "step = 0.1\nstride = 2", "stride"),
+        (
+            "pixel_pitch_um = 4.0",
+            "pixel_pitch_um = 4.0\nfocal = 3",
+            "focal",
+        ),
+    ] {
+        let text = GOOD.replace(old, new);
+        let (msg, line, _) = error_of(tmp.path(), &text);
+        assert_eq!(line, line_of(&text, &format!("{key} =")), "{msg}");
+        assert!(msg.contains(key), "{msg}");
+    }
+}
+
+#[test]
+fn wrong_types_are_rejected_where_they_are() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (old, new) in [
+        ("size_m = 0.1", "size_m = \"big\""),
+        ("width = 640", "width = -640"),
+        ("id = 42", "id = 4.2"),
+        ("translation = [0.0, 0.0, 1.0]", "translation = [0.0, 1.0]"),
+        ("system = \"coppertag\"", "system = \"qrcode\""),
+    ] {
+        let text = GOOD.replace(old, new);
+        let (msg, line, _) = error_of(tmp.path(), &text);
+        assert_eq!(line, line_of(&text, new), "{new}: {msg}");
+    }
+    // Not TOML at all.
+    let (msg, line, _) = error_of(tmp.path(), &GOOD.replace("step = 0.1", "step = = 0.1"));
+    assert_eq!(line, line_of(GOOD, "step = 0.1"), "{msg}");
+}
+
+#[test]
+fn bad_values_point_at_their_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (old, new, key, words) in [
+        (
+            "size_m = 0.1",
+            "size_m = -0.1",
+            "size_m",
+            "must be a positive",
+        ),
+        (
+            "size_m = 0.1",
+            "size_m = 0.0",
+            "size_m",
+            "must be a positive",
+        ),
+        ("id = 42", "id = 256", "id", "out of range"),
+        ("step = 0.1", "step = 0.3", "step", "whole number of steps"),
+        ("step = 0.1", "step = -0.1", "step", "must be positive"),
+        (
+            "pixel_pitch_um = 4.0",
+            "pixel_pitch_um = -4.0",
+            "focal_length_mm",
+            "positive",
+        ),
+    ] {
+        let text = GOOD.replace(old, new);
+        let (msg, line, _) = error_of(tmp.path(), &text);
+        assert_eq!(line, line_of(&text, &format!("{key} =")), "{msg}");
+        assert!(msg.contains(words), "{msg}");
+    }
+    // A pose behind the camera (without the sweep, which would set z).
+    let no_sweep = &GOOD[..GOOD.find("[sweep]").unwrap()];
+    let text = no_sweep.replace(
+        "translation = [0.0, 0.0, 1.0]",
+        "translation = [0.0, 0.0, -1.0]",
+    );
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert!(msg.contains("behind the camera"), "{msg}");
+    assert_eq!(line, line_of(&text, "translation ="));
+    // A sweep that takes the marker behind the camera.
+    let text = GOOD.replace("from = 0.5", "from = -0.5");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert!(msg.contains("behind the camera at sweep z = -0.5"), "{msg}");
+    assert_eq!(line, line_of(&text, "translation ="));
+    // A marker beyond the lens model's valid field.
+    let text = GOOD
+        .replace(
+            "pixel_pitch_um = 4.0",
+            "pixel_pitch_um = 4.0\ndistortion = [-0.5, 0.0, 0.0, 0.0, 0.0]",
+        )
+        .replace(
+            "translation = [0.0, 0.0, 1.0]",
+            "translation = [2.0, 0.0, 1.0]",
+        );
+    let (msg, _, _) = error_of(tmp.path(), &text);
+    assert!(msg.contains("distortion model is valid"), "{msg}");
+}
+
+fn pattern_spec(dir: &Path, pattern: &str) -> (PathBuf, String) {
+    let p = dir.join("pat.toml");
+    std::fs::write(&p, pattern).unwrap();
+    let text = format!("{GOOD}\n[occlusion]\npatterns = [\"pat.toml\"]\n");
+    (p, text)
+}
+
+#[test]
+fn a_broken_occluder_file_is_named_with_its_line() {
+    let tmp = tempfile::tempdir().unwrap();
+    let good = "scenario = \"triangle\"\ncoverage = 0.08\n\n[[occluder]]\npolygon = [[-0.2, -0.2], [0.6, -0.2], [-0.2, 0.6]]\n";
+    let (_, text) = pattern_spec(tmp.path(), good);
+    std::fs::write(tmp.path().join("spec.toml"), &text).unwrap();
+    DatasetSpec::load(&tmp.path().join("spec.toml")).unwrap();
+    for (old, new, line, words) in [
+        ("polygon = [[-0.2", "polygon = [[-0.2, -0.2] [0.6", 5, ""),
+        ("polygon", "polygno", 5, "polygno"),
+        ("\"triangle\"", "\"triangel\"", 1, "triangel"),
+        (
+            "coverage = 0.08",
+            "coverage = 0.3",
+            1,
+            "stated coverage 0.3",
+        ),
+        (
+            "\"triangle\"",
+            "\"same-side\"",
+            1,
+            "same-side pattern must hide",
+        ),
+    ] {
+        let (pat_path, text) = pattern_spec(tmp.path(), &good.replace(old, new));
+        let path = tmp.path().join("spec.toml");
+        std::fs::write(&path, &text).unwrap();
+        let e = DatasetSpec::load(&path).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(&format!("{}:{line}:", pat_path.display())),
+            "{msg}"
+        );
+        assert!(msg.contains(words), "{msg}");
+    }
+    // A pattern file that is not there: the spec's line.
+    let text = format!("{GOOD}\n[occlusion]\npatterns = [\"missing.toml\"]\n");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "missing.toml"), "{msg}");
+}
