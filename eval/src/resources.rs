@@ -1,12 +1,18 @@
 //! CPU time and peak memory of a process, read from Linux's `/proc`.
 //!
-//! `/proc/<pid>/schedstat` gives the time a process's main thread spent on
-//! a CPU in nanoseconds (no clock-tick conversion needed), summed over all
-//! threads via `/proc/<pid>/task/*/schedstat`; `/proc/<pid>/status` gives
-//! `VmHWM`, the peak resident set size. Reading them needs no unsafe code
-//! and no extra crate. On other systems the figures are absent (`None`).
+//! Process CPU time is `utime + stime` from `/proc/<pid>/stat` (in clock
+//! ticks of 1/100 s, the value Linux reports to user space on every
+//! mainstream architecture), which counts every thread, including those that
+//! have exited. A single thread's time prefers `/proc/thread-self/schedstat`
+//! (nanoseconds) and falls back to ticks where the kernel keeps no
+//! scheduler statistics. `VmHWM` in `/proc/<pid>/status` is the peak
+//! resident set size. No unsafe code and no extra crate; on other systems
+//! the figures are absent (`None`).
 
 use std::path::Path;
+
+/// Clock ticks per second of the times in `/proc/*/stat`.
+const TICKS_PER_S: f64 = 100.0;
 
 /// A reading of a process's counters.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
@@ -17,14 +23,16 @@ pub struct Usage {
     pub peak_rss: u64,
 }
 
-fn cpu_ns(task_dir: &Path) -> Option<u64> {
-    let mut total = 0u64;
-    for entry in std::fs::read_dir(task_dir).ok()? {
-        let path = entry.ok()?.path().join("schedstat");
-        let text = std::fs::read_to_string(path).ok()?;
-        total += text.split_whitespace().next()?.parse::<u64>().ok()?;
-    }
-    Some(total)
+/// `utime + stime` of a `stat` file, seconds.
+fn stat_cpu_s(stat: &Path) -> Option<f64> {
+    let text = std::fs::read_to_string(stat).ok()?;
+    // The command name (field 2) may hold spaces; fields after its closing
+    // parenthesis are plain numbers: state is field 3, utime 14, stime 15.
+    let rest = &text[text.rfind(')')? + 1..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / TICKS_PER_S)
 }
 
 fn peak_rss(status: &Path) -> Option<u64> {
@@ -38,7 +46,7 @@ fn peak_rss(status: &Path) -> Option<u64> {
 pub fn of_pid(pid: u32) -> Option<Usage> {
     let dir = Path::new("/proc").join(pid.to_string());
     Some(Usage {
-        cpu_s: cpu_ns(&dir.join("task"))? as f64 * 1e-9,
+        cpu_s: stat_cpu_s(&dir.join("stat"))?,
         peak_rss: peak_rss(&dir.join("status"))?,
     })
 }
@@ -50,8 +58,14 @@ pub fn of_self() -> Option<Usage> {
 
 /// CPU time of the calling thread alone, seconds.
 pub fn thread_cpu_s() -> Option<f64> {
-    let text = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    Some(text.split_whitespace().next()?.parse::<u64>().ok()? as f64 * 1e-9)
+    let ns = std::fs::read_to_string("/proc/thread-self/schedstat")
+        .ok()
+        .and_then(|t| t.split_whitespace().next()?.parse::<u64>().ok())
+        .filter(|&ns| ns > 0);
+    match ns {
+        Some(ns) => Some(ns as f64 * 1e-9),
+        None => stat_cpu_s(Path::new("/proc/thread-self/stat")),
+    }
 }
 
 /// Total memory of the machine, bytes (for "% of memory" columns).
@@ -90,16 +104,20 @@ mod tests {
     #[test]
     fn reads_own_counters() {
         let before = of_self().expect("/proc is readable on Linux");
-        // Burn a little CPU so the counter moves.
+        let thread_before = thread_cpu_s().expect("/proc is readable on Linux");
+        // Burn 100 ms of CPU so that even tick-based counters move.
+        let t = std::time::Instant::now();
         let mut x = 0u64;
-        for i in 0..5_000_000u64 {
-            x = x.wrapping_mul(31).wrapping_add(i);
+        while t.elapsed().as_millis() < 100 {
+            for i in 0..10_000u64 {
+                x = x.wrapping_mul(31).wrapping_add(i);
+            }
         }
         std::hint::black_box(x);
         let after = of_self().unwrap();
         assert!(after.cpu_s > before.cpu_s);
         assert!(after.peak_rss > 1 << 20);
-        assert!(thread_cpu_s().unwrap() > 0.0);
+        assert!(thread_cpu_s().unwrap() > thread_before);
         assert!(machine().contains("cores"));
     }
 }

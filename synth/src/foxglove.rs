@@ -25,6 +25,7 @@
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 
+use base64::Engine as _;
 use mcap::records::MessageHeader;
 use serde_json::{json, Value};
 
@@ -38,38 +39,10 @@ pub fn log_time(index: usize) -> u64 {
     1_000_000_000 + index as u64 * 100_000_000
 }
 
-/// Standard base64 (RFC 4648, with padding).
+/// Standard base64 (RFC 4648, with padding), by the `base64` crate.
 #[must_use]
 pub fn base64(data: &[u8]) -> String {
-    let mut out = Vec::with_capacity(data.len().div_ceil(3) * 4);
-    base64_into(data, &mut out);
-    String::from_utf8(out).expect("base64 alphabet is ASCII")
-}
-
-/// Appends the base64 of `data` to `out`.
-fn base64_into(data: &[u8], out: &mut Vec<u8>) {
-    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    out.reserve(data.len().div_ceil(3) * 4);
-    for chunk in data.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
-        out.push(ALPHABET[(n >> 18) as usize & 63]);
-        out.push(ALPHABET[(n >> 12) as usize & 63]);
-        out.push(if chunk.len() > 1 {
-            ALPHABET[(n >> 6) as usize & 63]
-        } else {
-            b'='
-        });
-        out.push(if chunk.len() > 2 {
-            ALPHABET[n as usize & 63]
-        } else {
-            b'='
-        });
-    }
+    base64::engine::general_purpose::STANDARD.encode(data)
 }
 
 fn time_schema() -> Value {
@@ -308,7 +281,12 @@ impl<W: Write + Seek> McapWriter<W> {
             )
             .as_bytes(),
         );
-        base64_into(png, &mut msg);
+        let start = msg.len();
+        msg.resize(start + png.len().div_ceil(3) * 4, 0);
+        let written = base64::engine::general_purpose::STANDARD
+            .encode_slice(png, &mut msg[start..])
+            .expect("buffer sized for the encoding");
+        msg.truncate(start + written);
         msg.extend_from_slice(b"\"}");
         self.put_bytes(self.image, t, &msg)?;
         let k = camera.k_matrix();
