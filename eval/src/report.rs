@@ -395,6 +395,32 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
     }
 }
 
+/// Every run behind the tables, with its headline figures.
+fn runs(summaries: &[Summary], out: &mut String) {
+    out.push_str(
+        "\n## Every run\n\nOne detector over one dataset each (`build/full/runs/*.mcap` after `make reproduce`; \
+         per-image figures in `build/full/results/summary.json`).\n\n\
+         | dataset | detector | images | markers | found | wrong ids | false positives | duplicates | median corner px | median ms |\n\
+         |---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for s in summaries {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {:.2} |",
+            s.dataset,
+            s.detector,
+            s.images,
+            s.markers,
+            s.found,
+            s.wrong_ids,
+            s.false_positives,
+            s.duplicates,
+            s.corner_error_real.median,
+            s.time_ms.median
+        );
+    }
+}
+
 /// Writes every table and figure into `dir`; returns the Markdown body.
 pub fn write_report(
     summaries: &[Summary],
@@ -411,6 +437,7 @@ pub fn write_report(
     figure7(summaries, dir, &mut md)?;
     robustness(summaries, dir, &mut md, &mut rb)?;
     challenge(summaries, &mut md, &mut ch);
+    runs(summaries, &mut md);
     for (name, body) in [
         ("table1.csv", &t1),
         ("table2.csv", &t2),
