@@ -17,6 +17,14 @@ pub enum EvalError {
         /// The cause.
         source: std::io::Error,
     },
+    /// Writing an output file failed (nothing is left behind).
+    #[error("cannot write {}: {source}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// The cause.
+        source: std::io::Error,
+    },
     /// A file is not what it should be (truncated MCAP, bad CSV...).
     #[error("{}: {message}", path.display())]
     BadFile {

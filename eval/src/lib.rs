@@ -8,6 +8,7 @@
 //! summary with a committed baseline.
 #![deny(missing_docs)]
 
+pub mod atomic;
 mod error;
 pub mod gate;
 pub mod metrics;

@@ -159,7 +159,7 @@ pub fn line_chart(stem: &Path, chart: &Chart, series: &[Series]) -> Result<()> {
     let mut png = Vec::new();
     img.write_to(&mut std::io::Cursor::new(&mut png), image::ImageFormat::Png)
         .map_err(|e| EvalError::bad(stem.with_extension("png"), e.to_string()))?;
-    crate::report::write_atomic(&stem.with_extension("svg"), svg.as_bytes())?;
-    crate::report::write_atomic(&stem.with_extension("png"), &png)?;
+    crate::atomic::write_atomic_in_new_dir(&stem.with_extension("svg"), svg.as_bytes())?;
+    crate::atomic::write_atomic_in_new_dir(&stem.with_extension("png"), &png)?;
     Ok(())
 }

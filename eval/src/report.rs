@@ -8,6 +8,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::Path;
 
+use crate::atomic::write_atomic_in_new_dir;
 use crate::error::{EvalError, Result};
 use crate::metrics::Summary;
 use crate::plot::{line_chart, Chart, Series};
@@ -55,30 +56,6 @@ fn paper_table2(system: &str) -> [bool; 20] {
         row[i] = true;
     }
     row
-}
-
-/// Writes `bytes` to `path` atomically (temp file + rename).
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".report-")
-        .tempfile_in(dir)
-        .map_err(|e| EvalError::io(dir, e))?;
-    std::io::Write::write_all(tmp.as_file_mut(), bytes).map_err(|e| EvalError::io(path, e))?;
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt;
-        let _ = tmp
-            .as_file()
-            .set_permissions(std::fs::Permissions::from_mode(0o644));
-    }
-    tmp.persist(path)
-        .map_err(|e| EvalError::io(path, e.error))?;
-    Ok(())
 }
 
 fn sweep_of(s: &Summary) -> &str {
@@ -445,7 +422,7 @@ pub fn write_report(
         ("challenge.csv", &ch),
     ] {
         if !body.is_empty() {
-            write_atomic(&dir.join(name), body.as_bytes())?;
+            write_atomic_in_new_dir(&dir.join(name), body.as_bytes())?;
         }
     }
     Ok(md)

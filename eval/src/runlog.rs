@@ -208,23 +208,18 @@ pub fn write_run<W: Write + Seek>(
     Ok(())
 }
 
-/// Writes a run to `path` atomically.
+/// Writes a run to `path` atomically, creating its directory.
 pub fn save(path: &Path, run: &RunOutput) -> Result<()> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".run-")
-        .suffix(".mcap.tmp")
-        .tempfile_in(dir)
-        .map_err(|e| EvalError::io(dir, e))?;
-    write_run(std::io::BufWriter::new(tmp.as_file_mut()), run)
-        .map_err(|e| EvalError::bad(path, e.to_string()))?;
-    tmp.persist(path)
-        .map_err(|e| EvalError::io(path, e.error))?;
-    Ok(())
+    if let Some(dir) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
+    }
+    crate::atomic::write_atomic_with(path, |w| {
+        // The MCAP writer seeks back to patch offsets: give it a cursor
+        // and copy the finished bytes out.
+        let mut buf = std::io::Cursor::new(Vec::new());
+        write_run(&mut buf, run).map_err(|e| e.to_string())?;
+        std::io::Write::write_all(w, buf.get_ref()).map_err(|e| e.to_string())
+    })
 }
 
 fn from_map<T: for<'de> Deserialize<'de>>(

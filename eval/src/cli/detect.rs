@@ -10,7 +10,7 @@ use coppertag::{Detection, Detector, DetectorConfig};
 use image::{GrayImage, Rgb, RgbImage};
 use serde::Serialize;
 
-use super::output::write_atomic_with;
+use coppertag_eval::atomic::write_atomic_with;
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:\n  \
@@ -192,7 +192,9 @@ fn one_image(
         let out = PathBuf::from(out.to_string_lossy().replace("{name}", &stem));
         let canvas = draw(&img, &found);
         let format = image::ImageFormat::from_path(&out).unwrap_or(image::ImageFormat::Png);
-        write_atomic_with(&out, |w| canvas.write_to(w, format).map_err(Into::into))?;
+        write_atomic_with(&out, |w| {
+            canvas.write_to(w, format).map_err(|e| e.to_string())
+        })?;
     }
     Ok(())
 }

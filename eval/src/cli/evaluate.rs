@@ -4,8 +4,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
+use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::metrics::{evaluate, MatchRule, Summary};
-use coppertag_eval::report::write_atomic;
 use coppertag_eval::runlog::RunLog;
 use coppertag_eval::truth::Dataset;
 

@@ -4,8 +4,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
+use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::gate::{baseline_of, check, Baseline, Tolerances};
-use coppertag_eval::report::write_atomic;
 
 use super::evaluate::read_summaries;
 

@@ -9,7 +9,7 @@ use coppertag::Family;
 use coppertag_synth::raster::tag_image;
 use coppertag_synth::svg::{sheet_svgs, tag_svg, Paper};
 
-use super::output::write_atomic;
+use coppertag_eval::atomic::write_atomic;
 
 /// Largest PNG side accepted, in pixels (a 16k x 16k grey image is 256 MB).
 const MAX_PX: u32 = 16_384;

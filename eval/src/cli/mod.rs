@@ -4,7 +4,6 @@ pub mod detect;
 pub mod evaluate;
 pub mod gate;
 pub mod generate;
-pub mod output;
 pub mod progress;
 pub mod report;
 pub mod reproduce;

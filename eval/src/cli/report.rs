@@ -5,8 +5,9 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
+use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::metrics::Summary;
-use coppertag_eval::report::{write_atomic, write_report, Machine};
+use coppertag_eval::report::{write_report, Machine};
 use coppertag_eval::resources;
 
 use super::evaluate::read_summaries;

@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
+use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::metrics::MatchRule;
-use coppertag_eval::report::{write_atomic, write_report, Machine};
+use coppertag_eval::report::{write_report, Machine};
 use coppertag_eval::resources;
 use coppertag_eval::runlog;
 use coppertag_eval::runner::{self, DetectorSpec};
