@@ -197,40 +197,8 @@ mod tests {
     use super::*;
 
     fn rot(ax: f64, ay: f64, az: f64) -> Matrix3<f64> {
-        let rx = Matrix3::new(
-            1.0,
-            0.0,
-            0.0,
-            0.0,
-            ax.cos(),
-            -ax.sin(),
-            0.0,
-            ax.sin(),
-            ax.cos(),
-        );
-        let ry = Matrix3::new(
-            ay.cos(),
-            0.0,
-            ay.sin(),
-            0.0,
-            1.0,
-            0.0,
-            -ay.sin(),
-            0.0,
-            ay.cos(),
-        );
-        let rz = Matrix3::new(
-            az.cos(),
-            -az.sin(),
-            0.0,
-            az.sin(),
-            az.cos(),
-            0.0,
-            0.0,
-            0.0,
-            1.0,
-        );
-        rz * ry * rx
+        // nalgebra's roll-pitch-yaw is Rz(az) * Ry(ay) * Rx(ax).
+        nalgebra::Rotation3::from_euler_angles(ax, ay, az).into_inner()
     }
 
     #[test]
