@@ -38,12 +38,15 @@ pub fn sample_bilinear(img: &GrayImage, x: f64, y: f64) -> Option<f64> {
     if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
         return None;
     }
-    let x0 = (x.floor() as u32).min(w.saturating_sub(2));
-    let y0 = (y.floor() as u32).min(h.saturating_sub(2));
-    let (fx, fy) = (x - x0 as f64, y - y0 as f64);
-    let x1 = (x0 + 1).min(w - 1);
-    let y1 = (y0 + 1).min(h - 1);
-    let p = |x: u32, y: u32| f64::from(img.get_pixel(x, y).0[0]);
+    // x, y >= 0 here, so truncation is floor.
+    let x0 = (x as u32).min(w.saturating_sub(2));
+    let y0 = (y as u32).min(h.saturating_sub(2));
+    let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
+    let x1 = (x0 + 1).min(w - 1) as usize;
+    let y1 = (y0 + 1).min(h - 1) as usize;
+    let (x0, y0, w) = (x0 as usize, y0 as usize, w as usize);
+    let raw = img.as_raw();
+    let p = |x: usize, y: usize| f64::from(raw[y * w + x]);
     let top = p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx;
     let bot = p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx;
     Some(top * (1.0 - fy) + bot * fy)

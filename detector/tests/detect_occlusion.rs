@@ -79,7 +79,15 @@ fn paper_patterns() -> Vec<String> {
                 let s = scene(kind, frac, &mut rng, grey, 0, 0.5);
                 match run_scene(&mut det, &s, &mut errs) {
                     Outcome::Found => {}
-                    Outcome::Missed => missed.push(format!("{kind:?} {frac} grey {grey}")),
+                    Outcome::Missed => {
+                        if std::env::var_os("CT_DUMP").is_some() {
+                            s.render()
+                                .save(format!("/tmp/miss-{kind:?}-{frac}-{grey}.png"))
+                                .unwrap();
+                            eprintln!("truth {:?}", s.corners());
+                        }
+                        missed.push(format!("{kind:?} {frac} grey {grey}"))
+                    }
                     Outcome::WrongId => panic!("wrong id: {kind:?} {frac} grey {grey}"),
                 }
             }
@@ -93,17 +101,17 @@ fn paper_patterns() -> Vec<String> {
 }
 
 /// Regression floor: the 20 patterns, each with a black and a white
-/// occluder, never give a wrong id and at most 3 of the 40 are missed
-/// (the current state; the bar is 0, see `paper_occlusion_patterns_all`).
+/// occluder, never give a wrong id and at most 1 of the 40 is missed
+/// (the current state; see `paper_occlusion_patterns_all`).
 #[test]
 fn paper_occlusion_patterns() {
     let missed = paper_patterns();
-    assert!(missed.len() <= 3, "missed: {missed:#?}");
+    assert!(missed.len() <= 1, "missed: {missed:#?}");
 }
 
 /// The bar: every pattern detected.
 #[test]
-#[ignore = "known gap: 3 of 40 black-occluder patterns (same-side 10 %, diagonal 15 %, symmetry 20 %) are missed"]
+#[ignore = "known gap: diagonal 15 % with black occluders on a 95 px tag is missed (the visible corner's border is broken up by the cells at 2x downsampling)"]
 fn paper_occlusion_patterns_all() {
     let missed = paper_patterns();
     assert!(missed.is_empty(), "missed: {missed:#?}");
@@ -117,6 +125,8 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
     let mut worst: f64 = 1.0;
     for kind in SCENARIOS {
         report += &format!("{kind:?}:");
+        // Pooled over 5-20 %, the levels the bar is set on.
+        let (mut low_found, mut low_n) = (0usize, 0usize);
         for &frac in fracs {
             let mut found = 0;
             for _ in 0..per_cell {
@@ -130,13 +140,19 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
                     Outcome::WrongId => panic!("wrong id: {kind:?} {frac}"),
                 }
             }
-            let rate = found as f64 / per_cell as f64;
             if frac <= 0.2 + 1e-9 {
-                worst = worst.min(rate);
+                low_found += found;
+                low_n += per_cell;
             }
-            report += &format!(" {:.0}%:{:.1}%", frac * 100.0, rate * 100.0);
+            report += &format!(
+                " {:.0}%:{:.1}%",
+                frac * 100.0,
+                100.0 * found as f64 / per_cell as f64
+            );
         }
-        report += "\n";
+        let low = low_found as f64 / low_n.max(1) as f64;
+        worst = worst.min(low);
+        report += &format!("  (5-20 %: {:.1}% of {low_n})\n", 100.0 * low);
     }
     errs.sort_by(f64::total_cmp);
     let q = |f: f64| errs[((errs.len() - 1) as f64 * f) as usize];
@@ -152,15 +168,16 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
 }
 
 /// A quick version of the procedural study (10 scenes per scenario and
-/// level, 5-20 %).
+/// level, 5-20 %): at least 95 % per scenario, pooled over the levels.
 #[test]
 fn procedural_occlusion_quick() {
-    procedural(10, &[0.05, 0.10, 0.15, 0.20], Some(0.8));
+    procedural(10, &[0.05, 0.10, 0.15, 0.20], Some(0.95));
 }
 
-/// The full study: 200 scenes per scenario and level, curve up to 35 %.
+/// The bar: 200 scenes per scenario over 5-20 % (50 per level), at
+/// least 95 % found in every scenario; the curve continues to 35 %.
 #[test]
-#[ignore = "several minutes; run with --release --ignored"]
+#[ignore = "about 10 minutes; run with --release --ignored"]
 fn procedural_occlusion_full() {
-    procedural(200, &[0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.35], Some(0.95));
+    procedural(50, &[0.05, 0.10, 0.15, 0.20, 0.25, 0.30, 0.35], Some(0.95));
 }

@@ -8,7 +8,11 @@
 //! 1. Arcs: maximal runs of a border's Douglas-Peucker polygon whose turns
 //!    all bend towards the dark side by less than 80 degrees (the rim is the
 //!    border of a dark disc, so it is convex towards the dark side; straight
-//!    occluder edges and square corners break the runs).
+//!    occluder edges and square corners break the runs). A junction that
+//!    turns far more than the rest of its run also ends it, and a run that
+//!    does not fit is trimmed from its worse end: where the rim meets an
+//!    occluder, the border often bends onto the occluder's edge gently
+//!    enough to pass the 80-degree test.
 //! 2. Each arc spanning enough of an ellipse gets a direct least-squares
 //!    ellipse fit (Fitzgibbon, Pilu & Fisher, "Direct least square fitting
 //!    of ellipses", IEEE PAMI 1999, in the numerically stable form of Halir &
@@ -37,6 +41,9 @@ pub(crate) struct Ellipse {
     /// Best estimate of the projected tag centre (the centre checker's disc
     /// when found, else the ellipse centre).
     pub anchor: [f64; 2],
+    /// Whether `anchor` is the checker's disc (unbiased under perspective,
+    /// unlike the rim's centre).
+    pub checker: bool,
 }
 
 /// Parameters of the ellipse stage.
@@ -108,14 +115,18 @@ pub(crate) fn find_ellipses(
             let p = pts[verts[k % m] as usize];
             [f64::from(p[0]), f64::from(p[1])]
         };
-        let good = |k: usize| {
-            // Junction at vertex k between sides k-1 and k.
+        // Turn at vertex k, between sides k-1 and k.
+        let turn = |k: usize| {
             let a = sub(vpt(k), vpt(k + m - 1));
             let b = sub(vpt(k + 1), vpt(k));
-            let t = sign * cross(a, b).atan2(dot(a, b));
-            t > min_turn && t < max_turn
+            sign * cross(a, b).atan2(dot(a, b))
         };
-        let ok: Vec<bool> = (0..m).map(good).collect();
+        let turns: Vec<f64> = (0..m).map(turn).collect();
+        let mut ok: Vec<bool> = turns
+            .iter()
+            .map(|&t| t > min_turn && t < max_turn)
+            .collect();
+        split_at_outliers(&turns, &mut ok);
         // Start walking just after a bad junction (or anywhere if none).
         let first_bad = ok.iter().position(|&g| !g);
         let start = first_bad.unwrap_or(0);
@@ -130,17 +141,47 @@ pub(crate) fn find_ellipses(
             if first_bad.is_none() {
                 e = s + m;
             }
-            let sides = e - s;
-            if sides >= 3 {
+            if first_bad.is_none() {
+                // A closed convex border: the whole of it.
                 let i0 = verts[s % m] as usize;
-                let mut i1 = verts[e % m] as usize;
-                if i1 <= i0 {
-                    i1 += n;
+                push_arc(pts, ci as u32, i0, i0 + n - 1, params, scratch);
+            } else {
+                let span = |a: usize, b: usize| {
+                    let i0 = verts[a % m] as usize;
+                    let mut i1 = verts[b % m] as usize;
+                    if i1 <= i0 {
+                        i1 += n;
+                    }
+                    (i0, i1)
+                };
+                // Where the rim meets an occluder the border turns onto
+                // the occluder's edge, often by less than `max_turn`, so
+                // a run may end in a side or two that are not rim. Trim
+                // sides off the ends, the worse-fitting end first, until
+                // the rest fits (at most MAX_TRIM sides).
+                const MAX_TRIM: usize = 4;
+                let (mut a, mut b) = (s, e);
+                let mut trimmed = 0;
+                while b - a >= 3 {
+                    let (i0, i1) = span(a, b);
+                    if push_arc(pts, ci as u32, i0, i1, params, scratch) || trimmed == MAX_TRIM {
+                        break;
+                    }
+                    let rms = |a: usize, b: usize, sc: &mut EllipseScratch| {
+                        let (i0, i1) = span(a, b);
+                        arc_points(pts, i0, i1, sc);
+                        fit_ellipse(&sc.pts).map_or(f64::INFINITY, |f| f.rms)
+                    };
+                    if b - a == 3 {
+                        break;
+                    }
+                    if rms(a + 1, b, scratch) <= rms(a, b - 1, scratch) {
+                        a += 1;
+                    } else {
+                        b -= 1;
+                    }
+                    trimmed += 1;
                 }
-                if first_bad.is_none() {
-                    i1 = i0 + n - 1;
-                }
-                push_arc(pts, ci as u32, i0, i1, params, scratch);
             }
             k = e - start;
         }
@@ -148,6 +189,55 @@ pub(crate) fn find_ellipses(
     merge(contours, params, scratch, out);
 }
 
+/// Where a rim runs into an occluder the border turns onto the occluder's
+/// edge, often by less than the 80-degree limit. Douglas-Peucker turns
+/// along one smooth arc are alike (about sqrt(8 eps / R) for curvature
+/// radius R), so a junction turning more than three times the median of
+/// its run, and by more than 30 degrees, ends the run there.
+fn split_at_outliers(turns: &[f64], ok: &mut [bool]) {
+    let m = turns.len();
+    let Some(first_bad) = ok.iter().position(|&g| !g) else {
+        return;
+    };
+    let mut run: Vec<usize> = Vec::new();
+    let mut vals: Vec<f64> = Vec::new();
+    let mut flush = |run: &mut Vec<usize>, ok: &mut [bool]| {
+        if run.len() >= 3 {
+            vals.clear();
+            vals.extend(run.iter().map(|&k| turns[k]));
+            vals.sort_by(f64::total_cmp);
+            let limit = (3.0 * vals[vals.len() / 2]).max(30f64.to_radians());
+            for &k in run.iter() {
+                if turns[k] > limit {
+                    ok[k] = false;
+                }
+            }
+        }
+        run.clear();
+    };
+    for i in 1..=m {
+        let k = (first_bad + i) % m;
+        if ok[k] {
+            run.push(k);
+        } else {
+            flush(&mut run, ok);
+        }
+    }
+    flush(&mut run, ok);
+}
+
+fn arc_points(pts: &[[i32; 2]], i0: usize, i1: usize, scratch: &mut EllipseScratch) {
+    let n = pts.len();
+    scratch.pts.clear();
+    scratch.pts.extend((i0..=i1).map(|k| {
+        let p = pts[k % n];
+        [f64::from(p[0]), f64::from(p[1])]
+    }));
+}
+
+/// Fits the border points `i0..=i1` (indices modulo the border length) and
+/// keeps them as an arc when the fit is a good ellipse; returns whether it
+/// was kept.
 fn push_arc(
     pts: &[[i32; 2]],
     contour: u32,
@@ -155,28 +245,27 @@ fn push_arc(
     i1: usize,
     params: &EllipseParams,
     scratch: &mut EllipseScratch,
-) {
+) -> bool {
     let n = pts.len();
     let len = i1 - i0 + 1;
     if len < params.min_arc_points / 2 {
-        return;
+        return false;
     }
-    scratch.pts.clear();
-    scratch.pts.extend((i0..=i1).map(|k| {
-        let p = pts[k % n];
-        [f64::from(p[0]), f64::from(p[1])]
-    }));
-    if let Some(fit) = fit_ellipse(&scratch.pts) {
-        if accept(&fit, params) && coverage(&scratch.pts, &fit) >= 4 {
-            scratch.arcs.push(Arc {
-                contour,
-                start: (i0 % n) as u32,
-                len: len as u32,
-                fit,
-                merged: false,
-            });
-        }
+    arc_points(pts, i0, i1, scratch);
+    let Some(fit) = fit_ellipse(&scratch.pts) else {
+        return false;
+    };
+    if !(accept(&fit, params) && coverage(&scratch.pts, &fit) >= 4) {
+        return false;
     }
+    scratch.arcs.push(Arc {
+        contour,
+        start: (i0 % n) as u32,
+        len: len as u32,
+        fit,
+        merged: false,
+    });
+    true
 }
 
 fn accept(f: &Conic, params: &EllipseParams) -> bool {
@@ -251,6 +340,7 @@ fn merge(
             a: fit.a,
             b: fit.b,
             anchor: fit.centre,
+            checker: false,
         });
     }
 }
@@ -455,6 +545,7 @@ pub(crate) fn find_anchors(contours: &Contours, ellipses: &mut [Ellipse]) {
             if norm(sub(centroid, e.centre)) < norm(sub(e.anchor, e.centre)) || e.anchor == e.centre
             {
                 e.anchor = centroid;
+                e.checker = true;
             }
         }
     }
@@ -481,5 +572,24 @@ mod tests {
         assert!((f.centre[0] - cx).abs() < 1e-6 && (f.centre[1] - cy).abs() < 1e-6);
         assert!((f.a - a).abs() < 1e-6 && (f.b - b).abs() < 1e-6);
         assert!(f.rms < 1e-6);
+    }
+
+    #[test]
+    fn a_sharp_turn_ends_an_arc() {
+        let d = f64::to_radians;
+        // A rim (turns of 15 degrees) running into an occluder's edge (60)
+        // and on round to a square corner (-90, already bad).
+        let mut turns = vec![d(15.0); 12];
+        turns[8] = d(60.0);
+        turns[11] = d(-90.0);
+        let mut ok: Vec<bool> = turns.iter().map(|&t| t > 0.0 && t < d(80.0)).collect();
+        split_at_outliers(&turns, &mut ok);
+        let bad: Vec<usize> = (0..12).filter(|&k| !ok[k]).collect();
+        assert_eq!(bad, vec![8, 11]);
+        // Even turns (a small ellipse: few sides, large turns) stay whole.
+        let turns = vec![d(50.0), d(55.0), d(45.0), d(-90.0), d(52.0)];
+        let mut ok: Vec<bool> = turns.iter().map(|&t| t > 0.0 && t < d(80.0)).collect();
+        split_at_outliers(&turns, &mut ok);
+        assert_eq!(ok, vec![true, true, true, false, true]);
     }
 }

@@ -416,7 +416,14 @@ impl Detector {
         st.candidates = ws.candidates.len();
         st.times.quads_ms = tick();
         // 6. Refine and decode, best candidates first.
-        let mut found: Vec<(Detection, usize)> = Vec::new();
+        // A tag seen through an occluder usually has several candidate
+        // quads (a triangle through a false corner on the occluder's edge,
+        // a same-side recovery, ...) and a wrong one can still decode, the
+        // Reed-Solomon code absorbing the misplaced cells. So a found tag
+        // that needed corrections keeps a few more overlapping candidates
+        // decoded, and the reading with the fewest corrections wins: the
+        // right geometry explains the visible cells best.
+        let mut found: Vec<Found> = Vec::new();
         for cand in ws.candidates.iter() {
             if st.decode_attempts >= cfg.max_candidates {
                 break;
@@ -428,8 +435,12 @@ impl Detector {
                     (c[0][1] + c[1][1] + c[2][1] + c[3][1]) / 4.0,
                 ]
             };
-            if found.iter().any(|(d, _)| inside(&d.corners, centre)) {
-                continue;
+            let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+            if let Some(r) = rival {
+                let f = &found[r];
+                if f.det.corrected == 0 || f.rivals >= MAX_RIVALS {
+                    continue;
+                }
             }
             st.decode_attempts += 1;
             let q = refine::refine_candidate(
@@ -441,10 +452,10 @@ impl Detector {
                 cfg.refine_corners,
                 &mut ws.rscratch,
             );
-            let mut best: Option<(Detection, usize)> = None;
+            let mut best: Option<Detection> = None;
             for &(fam, max_corr) in &self.families {
                 // A clean read cannot be beaten by another family.
-                if best.as_ref().is_some_and(|(b, _)| b.corrected == 0) {
+                if best.as_ref().is_some_and(|b| b.corrected == 0) {
                     break;
                 }
                 let Some(r) = decode_quad(img, fam, &q) else {
@@ -453,10 +464,7 @@ impl Detector {
                 if r.corrected > max_corr {
                     continue;
                 }
-                if best
-                    .as_ref()
-                    .is_some_and(|(b, _)| b.corrected <= r.corrected)
-                {
+                if best.as_ref().is_some_and(|b| b.corrected <= r.corrected) {
                     continue;
                 }
                 let d = r.rotation % 4;
@@ -466,22 +474,30 @@ impl Detector {
                 };
                 let center = h.map([0.0, 0.0]).unwrap_or(centre);
                 let m = h.matrix();
-                best = Some((
-                    Detection {
-                        family: fam.name(),
-                        id: r.id,
-                        corners: r.corners,
-                        estimated,
-                        corrected: r.corrected,
-                        center,
-                        contrast: r.contrast,
-                        homography: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
-                    },
-                    cand.real,
-                ));
+                best = Some(Detection {
+                    family: fam.name(),
+                    id: r.id,
+                    corners: r.corners,
+                    estimated,
+                    corrected: r.corrected,
+                    center,
+                    contrast: r.contrast,
+                    homography: std::array::from_fn(|i| std::array::from_fn(|j| m[(i, j)])),
+                });
             }
-            if let Some(b) = best {
-                found.push(b);
+            match (rival, best) {
+                (Some(r), Some(b)) => {
+                    let f = &mut found[r];
+                    f.rivals += 1;
+                    // Only a reading of the same tag competes; a different
+                    // id inside a found tag is not trusted over it.
+                    if b.family == f.det.family && b.id == f.det.id && better(&b, &f.det) {
+                        f.det = b;
+                    }
+                }
+                (Some(r), None) => found[r].rivals += 1,
+                (None, Some(b)) => found.push(Found { det: b, rivals: 0 }),
+                (None, None) => {}
             }
         }
         st.times.decode_ms = tick();
@@ -489,19 +505,12 @@ impl Detector {
         // find were skipped above; a later, larger quad may still contain an
         // earlier one).
         let mut out: Vec<Detection> = Vec::with_capacity(found.len());
-        for (d, _) in found {
+        for Found { det: d, .. } in found {
             if let Some(o) = out
                 .iter_mut()
                 .find(|o| inside(&o.corners, d.center) || inside(&d.corners, o.center))
             {
-                let better = (
-                    d.estimated.iter().filter(|&&e| !e).count(),
-                    std::cmp::Reverse(d.corrected),
-                ) > (
-                    o.estimated.iter().filter(|&&e| !e).count(),
-                    std::cmp::Reverse(o.corrected),
-                );
-                if better {
+                if better(&d, o) {
                     *o = d;
                 }
             } else {
@@ -514,6 +523,22 @@ impl Detector {
         self.stats = st;
         out
     }
+}
+
+/// Extra candidates decoded for a tag already found with corrections.
+const MAX_RIVALS: usize = 6;
+
+/// A tag found in this frame and how many rival candidates were tried.
+struct Found {
+    det: Detection,
+    rivals: usize,
+}
+
+/// Whether reading `a` of a tag is better than reading `b`: fewer Reed-
+/// Solomon corrections, then more measured corners.
+fn better(a: &Detection, b: &Detection) -> bool {
+    let real = |d: &Detection| d.estimated.iter().filter(|&&e| !e).count();
+    (std::cmp::Reverse(a.corrected), real(a)) > (std::cmp::Reverse(b.corrected), real(b))
 }
 
 /// Whether `p` is inside the convex quad `q`.

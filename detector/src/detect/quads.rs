@@ -23,8 +23,12 @@
 //! then on the corners around each ellipse, keeping only corners whose
 //! inside (the cone between their two lines) faces the anchor. Candidates
 //! are sorted real corners first, larger first, and near-duplicates
-//! dropped; the decoder removes the rest (a candidate inside an already
-//! decoded tag is skipped).
+//! dropped. An estimated corner with a detected corner beside it also
+//! gives a second candidate that uses the detected one (the paper's
+//! Replace-Fake-Corners); both are kept, because the detected corner may be
+//! where an occluder's edge crosses the tag's. The decoder settles it: of
+//! the candidates over one tag, the reading with the fewest corrections
+//! wins.
 
 use super::corners::{intersect, Corner};
 use super::ellipses::Ellipse;
@@ -328,8 +332,14 @@ pub(crate) fn find_candidates(
     }
     // Replace-Fake-Corners (the paper's Algorithm 2, line 18): an estimated
     // corner with a detected corner close by whose lines run along the
-    // quad's two sides there becomes that real corner.
-    for cand in out.iter_mut() {
+    // quad's two sides there becomes that real corner. The detected corner
+    // may itself be false (where an occluder's edge crosses the tag's), so
+    // the replacement is a new candidate and the original stays; the
+    // decoder keeps whichever reads with fewer corrections.
+    let n = out.len();
+    for i in 0..n {
+        let mut cand = out[i];
+        let mut replaced = false;
         for k in 0..4 {
             if !cand.estimated[k] {
                 continue;
@@ -351,8 +361,27 @@ pub(crate) fn find_candidates(
                 cand.estimated[k] = false;
                 cand.source[k] = Some(ci as u32);
                 cand.real += 1;
+                replaced = true;
             }
         }
+        if replaced && out.len() < p.max_candidates {
+            out.push(cand);
+        }
+    }
+    // Quads found on a border alone get the tag centre of a checker disc
+    // that sits where their diagonals cross: refinement uses it to place
+    // hidden corners.
+    for cand in out.iter_mut().filter(|c| c.anchor.is_none() && c.real < 4) {
+        let q = cand.corners;
+        let Some(x) = intersect(q[0], sub(q[2], q[0]), q[1], sub(q[3], q[1])) else {
+            continue;
+        };
+        let side = (0..4).map(|i| norm(sub(q[(i + 1) % 4], q[i]))).sum::<f64>() / 4.0;
+        cand.anchor = ellipses
+            .iter()
+            .filter(|e| e.checker && norm(sub(e.anchor, x)) < 0.1 * side)
+            .min_by(|a, b| norm(sub(a.anchor, x)).total_cmp(&norm(sub(b.anchor, x))))
+            .map(|e| e.anchor);
     }
     // Best first: more real corners, then larger.
     out.sort_by(|a, b| b.real.cmp(&a.real).then(b.area.total_cmp(&a.area)));

@@ -10,11 +10,18 @@
 //! refitted once without outliers, replaces the coarse line; this is done
 //! twice, the second time in a narrow window around the first result.
 //!
+//! A corner's own line piece may cover only a little of its side (blur
+//! chamfers the corner, an occluder cuts the side), so from each measured
+//! corner the edge is also followed along the side for as long as it is
+//! seen, and the fit runs over all of it.
+//!
 //! Corners are then intersections of adjacent refined sides: real corners
 //! and the estimated corners of the triangle and diagonal cases (which are
-//! intersections of visible sides by construction). The two estimated
-//! corners of a same-side quad are recomputed on the diagonals through the
-//! tag centre.
+//! intersections of visible sides by construction). A hidden corner next to
+//! a side seen only over a short piece is put instead on the diagonal from
+//! the opposite corner through the tag centre (the checker disc), cut with
+//! the better seen side. The two estimated corners of a same-side quad are
+//! recomputed on the diagonals through the tag centre.
 
 use image::GrayImage;
 
@@ -28,6 +35,8 @@ use crate::decode::sample_bilinear;
 struct SideLine {
     p: [f64; 2],
     d: [f64; 2],
+    /// Length of the side the line was measured along (px).
+    support: f64,
 }
 
 /// Reusable buffers.
@@ -81,6 +90,7 @@ pub(crate) fn refine_candidate(
             SideLine {
                 p: q[i],
                 d: unit(sub(q[j], q[i])),
+                support: norm(sub(q[j], q[i])),
             }
         } else {
             let (a, b) = segs
@@ -92,24 +102,74 @@ pub(crate) fn refine_candidate(
             SideLine {
                 p: a,
                 d: unit(sub(b, a)),
+                support: norm(sub(b, a)),
             }
         };
         if !refine {
             *side = Some(coarse);
             continue;
         }
-        let fine = fit_side(img, &coarse, &segs, cell, scale, 1, s)
-            .and_then(|l| fit_side(img, &l, &segs, cell, scale, 2, s).or(Some(l)));
-        *side = fine.or(Some(coarse));
+        let mut line = fit_side(img, &coarse, &segs, cell, scale, 1, s)
+            .and_then(|l| fit_side(img, &l, &segs, cell, scale, 2, s).or(Some(l)))
+            .unwrap_or(coarse);
+        // The corner's own line piece can be short (a chamfer where blur
+        // rounds the corner, or a side cut by an occluder); follow the
+        // edge from each measured end for as long as it is seen, then fit
+        // again over all of it.
+        let len = norm(sub(q[j], q[i]));
+        let reach = 1.25 * len;
+        // Only pieces that cover less than most of the side need it: a
+        // clean tag's lines run corner to corner and cost nothing more.
+        let short = |seg: Option<([f64; 2], [f64; 2])>| {
+            seg.is_some_and(|(a, b)| norm(sub(b, a)) < 0.6 * len)
+        };
+        let from_i = short(segs[0])
+            .then(|| track(img, &line, q[i], 1.0, reach, cell, s))
+            .flatten();
+        let from_j = short(segs[1])
+            .then(|| track(img, &line, q[j], -1.0, reach, cell, s))
+            .flatten();
+        if from_i.is_some() || from_j.is_some() {
+            let spans = [from_i.or(segs[0]), from_j.or(segs[1])];
+            if let Some(l) = fit_side(img, &line, &spans, cell, scale, 2, s) {
+                line = l;
+            }
+        }
+        *side = Some(line);
     }
     let mut out = q;
+    let modest = |x: [f64; 2], k: usize| norm(sub(x, q[k])) < 0.25 * side_len + 3.0 * scale;
     for k in 0..4 {
-        let prev = sides[(k + 3) % 4];
-        let next = sides[k];
-        if let (Some(a), Some(b)) = (prev, next) {
+        if let (Some(a), Some(b)) = (sides[(k + 3) % 4], sides[k]) {
             if let Some(x) = intersect(a.p, a.d, b.p, b.d) {
                 // Accept only a modest move (guards near-parallel sides).
-                if norm(sub(x, q[k])) < 0.25 * side_len + 3.0 * scale {
+                if modest(x, k) {
+                    out[k] = x;
+                }
+            }
+        }
+    }
+    // A hidden corner between two sides of which one is seen only over a
+    // short piece: that side's direction is poorly known and its error is
+    // magnified at the far corner. With the tag centre known, the corner is
+    // on the diagonal from the opposite (measured) corner through the
+    // centre; cut that with the better seen side instead.
+    if let Some(o) = cand.anchor.map(|o| to_full(o, scale)) {
+        let fixed = out;
+        for k in 0..4 {
+            if !cand.estimated[k] || cand.estimated[(k + 2) % 4] {
+                continue;
+            }
+            let (Some(a), Some(b)) = (sides[(k + 3) % 4], sides[k]) else {
+                continue;
+            };
+            if a.support.min(b.support) >= SHORT_SIDE * side_len {
+                continue;
+            }
+            let opp = fixed[(k + 2) % 4];
+            let best = if a.support >= b.support { a } else { b };
+            if let Some(x) = intersect(opp, sub(o, opp), best.p, best.d) {
+                if modest(x, k) {
                     out[k] = x;
                 }
             }
@@ -145,6 +205,10 @@ pub(crate) fn refine_candidate(
     }
     out
 }
+
+/// A side measured over less than this fraction of the quad's longest
+/// side gives too uncertain a direction to place a hidden corner.
+const SHORT_SIDE: f64 = 0.35;
 
 fn unit(v: [f64; 2]) -> [f64; 2] {
     let n = norm(v).max(1e-12);
@@ -217,6 +281,71 @@ fn fit_side(
     Some(fit)
 }
 
+/// Follows a side's edge from the corner `from` along `line` (forwards
+/// when `sign` is 1, backwards when -1) for at most `reach` pixels, and
+/// returns the span over which it was seen. The line is refitted as points
+/// come in, so a coarse start direction is corrected on the way; the walk
+/// stops where the edge has not been seen for half a cell (an occluder, or
+/// the far corner).
+fn track(
+    img: &GrayImage,
+    line: &SideLine,
+    from: [f64; 2],
+    sign: f64,
+    reach: f64,
+    cell: f64,
+    s: &mut RefineScratch,
+) -> Option<([f64; 2], [f64; 2])> {
+    // Right normal of the side's own direction: towards the black frame.
+    let n = [-line.d[1], line.d[0]];
+    let mut d = [sign * line.d[0], sign * line.d[1]];
+    // Start on the line, level with the corner.
+    let t0 = dot(sub(from, line.p), line.d);
+    let mut o = [line.p[0] + t0 * line.d[0], line.p[1] + t0 * line.d[1]];
+    let w = (0.7 * cell).clamp(1.5, 4.0) + 1.0;
+    // About 80 probes over a side, never more than half the stop gap apart.
+    let gap = (0.5 * cell).max(4.0);
+    let step = (reach / 80.0).clamp(1.0, 0.5 * gap);
+    let start = 1.5 + (0.8 * cell).min(4.0);
+    s.edge.clear();
+    let mut last = None;
+    let mut t = start;
+    let mut since_fit = 0;
+    while t < reach {
+        let c = [o[0] + t * d[0], o[1] + t * d[1]];
+        let seen =
+            edge_crossing(img, c, n, w, w, 0.5, &mut s.profile).filter(|off| off.abs() <= 1.5);
+        if let Some(off) = seen {
+            s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
+            last = Some(t);
+            since_fit += 1;
+            if since_fit >= 16 {
+                since_fit = 0;
+                if let Some(f) = tls(&s.edge) {
+                    let fd = if dot(f.d, d) < 0.0 {
+                        [-f.d[0], -f.d[1]]
+                    } else {
+                        f.d
+                    };
+                    // Keep the parameter t: re-anchor o on the new line.
+                    let tf = dot(sub(o, f.p), fd);
+                    o = [f.p[0] + tf * fd[0], f.p[1] + tf * fd[1]];
+                    d = fd;
+                }
+            }
+        } else if last.map_or(t - start, |l| t - l) > gap {
+            break;
+        }
+        t += step;
+    }
+    let end = last?;
+    (s.edge.len() >= 3).then(|| {
+        let a = [o[0] + start * d[0], o[1] + start * d[1]];
+        let b = [o[0] + end * d[0], o[1] + end * d[1]];
+        (a, b)
+    })
+}
+
 /// Offset along `n` from `c` where the grey profile crosses halfway between
 /// its white (negative side) and black (positive side) levels, nearest to
 /// 0. `None` without contrast or crossing.
@@ -276,8 +405,16 @@ fn tls(pts: &[[f64; 2]]) -> Option<SideLine> {
         syy += d[1] * d[1];
     }
     let th = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    let d = [th.cos(), th.sin()];
+    let (mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY);
+    for p in pts {
+        let t = dot(sub(*p, c), d);
+        t0 = t0.min(t);
+        t1 = t1.max(t);
+    }
     Some(SideLine {
         p: c,
-        d: [th.cos(), th.sin()],
+        d,
+        support: t1 - t0,
     })
 }
