@@ -55,6 +55,12 @@ pub(crate) fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
 pub(crate) fn norm(a: [f64; 2]) -> f64 {
     a[0].hypot(a[1])
 }
+/// `v` scaled to unit length (a zero vector stays near zero, not NaN).
+#[inline]
+pub(crate) fn unit(v: [f64; 2]) -> [f64; 2] {
+    let n = norm(v).max(1e-12);
+    [v[0] / n, v[1] / n]
+}
 #[inline]
 fn fp(p: [i32; 2]) -> [f64; 2] {
     [f64::from(p[0]), f64::from(p[1])]

@@ -32,7 +32,7 @@
 
 use super::corners::{intersect, Corner};
 use super::ellipses::Ellipse;
-use super::lines::{cross, dot, norm, sub};
+use super::lines::{cross, dot, norm, sub, unit};
 
 /// A candidate quad in working-image coordinates, corners anticlockwise on
 /// screen (TL, BL, BR, TR up to a rotation).
@@ -274,11 +274,6 @@ fn search_group(
             }
         }
     }
-}
-
-fn unit(v: [f64; 2]) -> [f64; 2] {
-    let n = norm(v).max(1e-12);
-    [v[0] / n, v[1] / n]
 }
 
 /// Whether the corner's inside (between its outgoing line and its reversed

@@ -26,7 +26,7 @@
 use image::GrayImage;
 
 use super::corners::{intersect, Corner};
-use super::lines::{cross, dot, norm, sub, Line};
+use super::lines::{cross, dot, norm, sub, unit, Line};
 use super::quads::Candidate;
 use crate::decode::sample_bilinear;
 
@@ -209,11 +209,6 @@ pub(crate) fn refine_candidate(
 /// A side measured over less than this fraction of the quad's longest
 /// side gives too uncertain a direction to place a hidden corner.
 const SHORT_SIDE: f64 = 0.35;
-
-fn unit(v: [f64; 2]) -> [f64; 2] {
-    let n = norm(v).max(1e-12);
-    [v[0] / n, v[1] / n]
-}
 
 /// Measures edge points along the visible pieces of one side and fits a
 /// line. `pass` 1 uses a wide window, 2 a narrow one.
