@@ -62,6 +62,19 @@ pub(crate) struct EllipseParams {
 pub(crate) struct EllipseScratch {
     arcs: Vec<Arc>,
     pts: Vec<[f64; 2]>,
+    junctions: Junctions,
+}
+
+/// Per-border buffers for the turns at polygon vertices.
+#[derive(Debug, Default)]
+struct Junctions {
+    /// Turn at each vertex towards the dark side (radians).
+    turns: Vec<f64>,
+    /// Whether an arc may continue through each vertex.
+    ok: Vec<bool>,
+    /// Vertices of the run being looked at, and their sorted turns.
+    run: Vec<usize>,
+    vals: Vec<f64>,
 }
 
 #[derive(Debug, Clone, Copy)]
@@ -121,12 +134,14 @@ pub(crate) fn find_ellipses(
             let b = sub(vpt(k + 1), vpt(k));
             sign * cross(a, b).atan2(dot(a, b))
         };
-        let turns: Vec<f64> = (0..m).map(turn).collect();
-        let mut ok: Vec<bool> = turns
-            .iter()
-            .map(|&t| t > min_turn && t < max_turn)
-            .collect();
-        split_at_outliers(&turns, &mut ok);
+        let mut jn = std::mem::take(&mut scratch.junctions);
+        jn.turns.clear();
+        jn.turns.extend((0..m).map(turn));
+        jn.ok.clear();
+        jn.ok
+            .extend(jn.turns.iter().map(|&t| t > min_turn && t < max_turn));
+        split_at_outliers(&mut jn);
+        let ok = &jn.ok;
         // Start walking just after a bad junction (or anywhere if none).
         let first_bad = ok.iter().position(|&g| !g);
         let start = first_bad.unwrap_or(0);
@@ -185,6 +200,7 @@ pub(crate) fn find_ellipses(
             }
             k = e - start;
         }
+        scratch.junctions = jn;
     }
     merge(contours, params, scratch, out);
 }
@@ -194,13 +210,17 @@ pub(crate) fn find_ellipses(
 /// along one smooth arc are alike (about sqrt(8 eps / R) for curvature
 /// radius R), so a junction turning more than three times the median of
 /// its run, and by more than 30 degrees, ends the run there.
-fn split_at_outliers(turns: &[f64], ok: &mut [bool]) {
+fn split_at_outliers(jn: &mut Junctions) {
+    let Junctions {
+        turns,
+        ok,
+        run,
+        vals,
+    } = jn;
     let m = turns.len();
     let Some(first_bad) = ok.iter().position(|&g| !g) else {
         return;
     };
-    let mut run: Vec<usize> = Vec::new();
-    let mut vals: Vec<f64> = Vec::new();
     let mut flush = |run: &mut Vec<usize>, ok: &mut [bool]| {
         if run.len() >= 3 {
             vals.clear();
@@ -215,15 +235,16 @@ fn split_at_outliers(turns: &[f64], ok: &mut [bool]) {
         }
         run.clear();
     };
+    run.clear();
     for i in 1..=m {
         let k = (first_bad + i) % m;
         if ok[k] {
             run.push(k);
         } else {
-            flush(&mut run, ok);
+            flush(run, ok);
         }
     }
-    flush(&mut run, ok);
+    flush(run, ok);
 }
 
 fn arc_points(pts: &[[i32; 2]], i0: usize, i1: usize, scratch: &mut EllipseScratch) {
@@ -579,17 +600,23 @@ mod tests {
         let d = f64::to_radians;
         // A rim (turns of 15 degrees) running into an occluder's edge (60)
         // and on round to a square corner (-90, already bad).
+        let split = |turns: Vec<f64>| {
+            let mut jn = Junctions {
+                ok: turns.iter().map(|&t| t > 0.0 && t < d(80.0)).collect(),
+                turns,
+                ..Junctions::default()
+            };
+            split_at_outliers(&mut jn);
+            jn.ok
+        };
         let mut turns = vec![d(15.0); 12];
         turns[8] = d(60.0);
         turns[11] = d(-90.0);
-        let mut ok: Vec<bool> = turns.iter().map(|&t| t > 0.0 && t < d(80.0)).collect();
-        split_at_outliers(&turns, &mut ok);
+        let ok = split(turns);
         let bad: Vec<usize> = (0..12).filter(|&k| !ok[k]).collect();
         assert_eq!(bad, vec![8, 11]);
         // Even turns (a small ellipse: few sides, large turns) stay whole.
-        let turns = vec![d(50.0), d(55.0), d(45.0), d(-90.0), d(52.0)];
-        let mut ok: Vec<bool> = turns.iter().map(|&t| t > 0.0 && t < d(80.0)).collect();
-        split_at_outliers(&turns, &mut ok);
+        let ok = split(vec![d(50.0), d(55.0), d(45.0), d(-90.0), d(52.0)]);
         assert_eq!(ok, vec![true, true, true, false, true]);
     }
 }
