@@ -5,9 +5,10 @@
 mod common;
 
 use common::*;
-use coppertag::{Detector, DetectorConfig, Family};
+use coppertag::{Detection, Detector, DetectorConfig, Family};
 
-fn check(det: &mut Detector, scene: &Scene, what: &str, errs: &mut Vec<f64>) {
+/// Detects the one tag of `scene`, checks it and returns it.
+fn check(det: &mut Detector, scene: &Scene, what: &str, errs: &mut Vec<f64>) -> Detection {
     let img = scene.render();
     let found = det.detect(&img);
     assert_eq!(
@@ -22,6 +23,7 @@ fn check(det: &mut Detector, scene: &Scene, what: &str, errs: &mut Vec<f64>) {
     let e = corner_errors(&d.corners, &scene.corners());
     assert!(e.iter().all(|&e| e < 1.0), "{what}: corner errors {e:?}");
     errs.extend(e);
+    found.into_iter().next().unwrap()
 }
 
 #[test]
@@ -155,9 +157,8 @@ fn ct8_tags() {
         let (d, rx, ry, rz) = poses[k % poses.len()];
         let s = paper_scene(Family::ct8(), id, d, &rotation(rx, ry, rz));
         let what = format!("ct8 id {id} at {d} m");
-        check(&mut det, &s, &what, &mut errs);
-        let found = det.detect(&s.render());
-        assert!(found[0].corrected <= 1, "{what}: {found:?}");
+        let d = check(&mut det, &s, &what, &mut errs);
+        assert!(d.corrected <= 1, "{what}: {d:?}");
     }
     // Only ct14 asked for: a ct8 tag is not reported.
     let cfg = DetectorConfig {
