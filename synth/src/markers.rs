@@ -193,6 +193,14 @@ impl MarkerModel {
             name: "id",
             reason: format!("{family} has ids 0..={}, not {id}", count - 1),
         };
+        // A peer's code for `id`, from its codebook (family `name`).
+        let code_in =
+            |name: &str, codes: &'static [Vec<u8>]| -> Result<&'static Vec<u8>, SynthError> {
+                if family != name {
+                    return Err(bad_family());
+                }
+                codes.get(id as usize).ok_or_else(|| bad_id(codes.len()))
+            };
         let elements = match system {
             MarkerSystem::Coppertag => {
                 let fam = Family::by_name(family)?;
@@ -200,25 +208,11 @@ impl MarkerModel {
             }
             MarkerSystem::Apriltag3 | MarkerSystem::Aruco3 => {
                 let book = square_book(system);
-                if family != book.name {
-                    return Err(bad_family());
-                }
-                let code = book
-                    .codes
-                    .get(id as usize)
-                    .ok_or_else(|| bad_id(book.codes.len()))?;
-                square_marker_elements(book, code)
+                square_marker_elements(book, code_in(&book.name, &book.codes)?)
             }
             MarkerSystem::Stag => {
                 let book = stag_book();
-                if family != book.name {
-                    return Err(bad_family());
-                }
-                let code = book
-                    .codes
-                    .get(id as usize)
-                    .ok_or_else(|| bad_id(book.codes.len()))?;
-                stag_elements(&book.geometry, code)
+                stag_elements(&book.geometry, code_in(&book.name, &book.codes)?)
             }
         };
         Ok(Self {
