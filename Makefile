@@ -8,16 +8,22 @@ PYTHON  ?= python3
 VENV    := .venv
 VPY     := $(VENV)/bin/python
 BIN     := target/release/coppertag
+# The gate's binary: the `ci` profile the tests are built with (Cargo.toml
+# says why), so `make test` compiles every crate once.
+GATE_BIN := target/ci/coppertag
 
 QUICK   ?=
 QUICKDIR := build/quick
 
-.PHONY: all build test lint venv bench reproduce baseline gate clean
+.PHONY: all build gate-build test lint venv bench reproduce baseline gate quick-run speed gate-slowdown clean
 
 all: build
 
 build:
 	$(CARGO) build --release --locked
+
+gate-build:
+	$(CARGO) build --profile ci --locked --bin coppertag
 
 # Python virtual environment for the peer detectors (AprilTag 3, ArUco 3,
 # STag) and the mcap reader, pinned in eval/peers/requirements.txt.
@@ -27,25 +33,48 @@ $(VENV)/.installed: eval/peers/requirements.txt
 	$(VPY) -m pip install --quiet --disable-pip-version-check -r eval/peers/requirements.txt
 	touch $@
 
+# Clippy runs under the `ci` profile too, so build scripts and proc-macros
+# are compiled once for lint and tests alike.
 lint:
 	$(CARGO) fmt --all -- --check
-	$(CARGO) clippy --workspace --all-targets --locked -- -D warnings
+	$(CARGO) clippy --workspace --all-targets --locked --profile ci -- -D warnings
 
 test: venv lint
-	COPPERTAG_REQUIRE_VENV=1 $(CARGO) test --workspace --locked
+	COPPERTAG_REQUIRE_VENV=1 $(CARGO) test --workspace --locked --profile ci
 	$(VPY) eval/peers/selftest.py
 	$(MAKE) gate
 
 # The regression gate: the QUICK sets (a tenth of every sweep) through all
-# four detectors, compared with the committed baseline.
-gate: venv build
-	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports --quiet
-	$(BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json
+# four detectors, then our speed against each peer's on the same frames
+# (interleaved, with a noise band), compared with the committed baseline.
+# Detection, wrong ids, false positives, duplicates and corner error are
+# exact checks; speed fails only when its whole noise band is out of bounds.
+gate: quick-run speed
+	$(GATE_BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json \
+	  --speed $(QUICKDIR)/results/speed.json
 
-# Re-make the baseline from the QUICK sets (after a deliberate change).
-baseline: venv build
-	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports --quiet
-	$(BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json --update
+quick-run: venv gate-build
+	$(GATE_BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports --quiet
+
+speed: venv gate-build
+	$(GATE_BIN) speed --work $(QUICKDIR) -o $(QUICKDIR)/results/speed.json --quiet
+
+# Proof that the speed check catches a real slowdown: our detector made
+# 1.4x slower (it burns CPU after each detection) must fail the gate with
+# exit code 1. Uses the QUICK datasets of a `make gate` run.
+gate-slowdown: venv gate-build
+	test -d $(QUICKDIR)/datasets || $(MAKE) quick-run
+	$(GATE_BIN) speed --work $(QUICKDIR) -o $(QUICKDIR)/results/speed-slowed.json --quiet --slowdown 1.4
+	$(GATE_BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json \
+	  --speed $(QUICKDIR)/results/speed-slowed.json; \
+	  code=$$?; if [ $$code -eq 1 ]; then echo "gate-slowdown: the 1.4x slowdown was caught"; \
+	  else echo "gate-slowdown: the 1.4x slowdown was NOT caught (gate exit $$code)"; exit 1; fi
+
+# Re-make the baseline from the QUICK sets (after a deliberate change),
+# with the same profile and measurement as the gate.
+baseline: quick-run speed
+	$(GATE_BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json \
+	  --speed $(QUICKDIR)/results/speed.json --update
 
 # The paper's tables and figures into reports/ (QUICK=1: a tenth of every
 # sweep, into build/quick/reports instead).

@@ -7,15 +7,19 @@
 //! - the median or p95 real-corner error grows by more than
 //!   [`Tolerances::corner_px`] or [`Tolerances::corner_fraction`] of its
 //!   baseline, whichever is larger;
-//! - our median time per image *relative to a peer measured in the same
-//!   run* grows by more than [`Tolerances::time_ratio`] (25%): absolute
-//!   times differ between machines, ratios much less.
+//! - our time relative to a peer's, measured on the same frames in one
+//!   interleaved run ([`crate::speed`]), has grown by more than
+//!   [`Tolerances::time_ratio`] beyond doubt: the whole noise band of the
+//!   ratio lies above the baseline ratio times `1 + time_ratio`. Absolute
+//!   times differ between machines, ratios much less; a band rather than a
+//!   point keeps a busy machine from failing unchanged code.
 
 use std::collections::BTreeMap;
 
 use serde::{Deserialize, Serialize};
 
 use crate::metrics::Summary;
+use crate::speed::{RatioEstimate, SpeedReport};
 
 /// What the gate remembers of one detector on one dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -36,17 +40,18 @@ pub struct BaselineEntry {
     pub time_median_ms: f64,
 }
 
-/// A baseline: entries by `detector/dataset`, plus speed ratios by
-/// `coppertag/peer`.
+/// A baseline: entries by `detector/dataset`, plus our speed relative to
+/// each peer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct Baseline {
     /// How the baseline was made.
     pub made_by: String,
     /// Entries by `detector/dataset`.
     pub entries: BTreeMap<String, BaselineEntry>,
-    /// Our median time over the peer's, over all datasets they share a
-    /// sweep in, by peer name.
-    pub time_ratio_vs: BTreeMap<String, f64>,
+    /// Our time over the peer's (median of per-frame ratios, with its
+    /// noise band when the baseline was made), by peer name.
+    #[serde(default)]
+    pub speed_ratio_vs: BTreeMap<String, RatioEstimate>,
 }
 
 /// Allowed drift.
@@ -56,7 +61,8 @@ pub struct Tolerances {
     pub corner_px: f64,
     /// Relative corner-error growth allowed.
     pub corner_fraction: f64,
-    /// Relative growth of our time ratio to a peer allowed.
+    /// Relative growth of our time ratio to a peer allowed, beyond the
+    /// noise band.
     pub time_ratio: f64,
 }
 
@@ -74,39 +80,8 @@ fn key(s: &Summary) -> String {
     format!("{}/{}", s.detector, s.dataset)
 }
 
-/// The sweep part of a dataset name (`coppertag-distance-z` -> `distance-z`).
-fn sweep(dataset: &str) -> &str {
-    dataset.split_once('-').map_or(dataset, |(_, rest)| rest)
-}
-
-/// Our median time over each peer's, from summaries of one run: the ratio
-/// of the medians of per-dataset medians over the sweeps both ran.
-pub fn time_ratios(summaries: &[Summary]) -> BTreeMap<String, f64> {
-    let ours: BTreeMap<&str, f64> = summaries
-        .iter()
-        .filter(|s| s.detector == "coppertag" && s.time_ms.n > 0)
-        .map(|s| (sweep(&s.dataset), s.time_ms.median))
-        .collect();
-    let mut by_peer: BTreeMap<String, (f64, f64)> = BTreeMap::new();
-    for s in summaries
-        .iter()
-        .filter(|s| s.detector != "coppertag" && s.time_ms.n > 0)
-    {
-        if let Some(&o) = ours.get(sweep(&s.dataset)) {
-            let e = by_peer.entry(s.detector.clone()).or_default();
-            e.0 += o;
-            e.1 += s.time_ms.median;
-        }
-    }
-    by_peer
-        .into_iter()
-        .filter(|(_, (_, p))| *p > 0.0)
-        .map(|(k, (o, p))| (k, o / p))
-        .collect()
-}
-
-/// A baseline from summaries.
-pub fn baseline_of(summaries: &[Summary], made_by: &str) -> Baseline {
+/// A baseline from summaries and, when given, a speed measurement.
+pub fn baseline_of(summaries: &[Summary], speed: Option<&SpeedReport>, made_by: &str) -> Baseline {
     Baseline {
         made_by: made_by.into(),
         entries: summaries
@@ -126,7 +101,9 @@ pub fn baseline_of(summaries: &[Summary], made_by: &str) -> Baseline {
                 )
             })
             .collect(),
-        time_ratio_vs: time_ratios(summaries),
+        speed_ratio_vs: speed
+            .map(|r| r.peers.iter().map(|(k, p)| (k.clone(), p.ratio)).collect())
+            .unwrap_or_default(),
     }
 }
 
@@ -172,16 +149,63 @@ pub fn check(baseline: &Baseline, summaries: &[Summary], tol: Tolerances) -> Vec
             }
         }
     }
-    let ratios = time_ratios(summaries);
-    for (peer, was) in &baseline.time_ratio_vs {
-        match ratios.get(peer) {
-            None => fails.push(format!("time vs {peer}: not measured in this run")),
-            Some(is) if *is > was * (1.0 + tol.time_ratio) => fails.push(format!(
-                "time vs {peer}: our median time is {is:.3}x the peer's, was {was:.3}x (allowed {:.3}x)",
-                was * (1.0 + tol.time_ratio)
-            )),
-            Some(_) => {}
+    fails
+}
+
+/// One peer's speed verdict.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedVerdict {
+    /// Peer name.
+    pub peer: String,
+    /// The baseline's ratio.
+    pub was: f64,
+    /// This run's ratio and noise band (`None`: not measured).
+    pub now: Option<RatioEstimate>,
+    /// Largest ratio allowed.
+    pub allowed: f64,
+    /// Whether the whole band lies above `allowed` (or the peer is missing).
+    pub failed: bool,
+}
+
+impl std::fmt::Display for SpeedVerdict {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.now {
+            None => write!(f, "time vs {}: not measured in this run", self.peer),
+            Some(n) => write!(
+                f,
+                "time vs {}: our time is {:.3}x the peer's (95% band {:.3}x-{:.3}x), baseline {:.3}x, \
+                 fails only if the band lies wholly above {:.3}x: {}",
+                self.peer,
+                n.median,
+                n.low,
+                n.high,
+                self.was,
+                self.allowed,
+                if self.failed { "FAILED" } else { "ok" }
+            ),
         }
     }
-    fails
+}
+
+/// Compares a speed measurement with the baseline's ratios: a peer fails
+/// when the low end of this run's band exceeds the baseline ratio times
+/// `1 + tol.time_ratio`, or when it was not measured.
+pub fn check_speed(baseline: &Baseline, speed: &SpeedReport, tol: Tolerances) -> Vec<SpeedVerdict> {
+    baseline
+        .speed_ratio_vs
+        .iter()
+        .map(|(peer, was)| {
+            let allowed = was.median * (1.0 + tol.time_ratio);
+            let now = speed.peers.get(peer).map(|p| p.ratio);
+            // A NaN band (no frames) fails too: it proves nothing.
+            let failed = now.is_none_or(|n| n.low.is_nan() || n.low > allowed);
+            SpeedVerdict {
+                peer: peer.clone(),
+                was: was.median,
+                now,
+                allowed,
+                failed,
+            }
+        })
+        .collect()
 }

@@ -18,6 +18,7 @@ pub mod report;
 pub mod resources;
 pub mod runlog;
 pub mod runner;
+pub mod speed;
 pub mod truth;
 
 pub use error::{EvalError, Result};

@@ -35,6 +35,8 @@ enum Command {
     Report(cli::report::ReportArgs),
     /// Compare a run's metrics with a committed baseline; fail on regressions.
     Gate(cli::gate::GateArgs),
+    /// Time ours against each peer on the same frames, interleaved, with a noise band.
+    Speed(cli::speed::SpeedArgs),
     /// Everything from nothing: render datasets, run all detectors, evaluate, report.
     Reproduce(cli::reproduce::ReproduceArgs),
 }
@@ -49,6 +51,7 @@ fn main() -> ExitCode {
         Command::Eval(args) => cli::evaluate::run(args),
         Command::Report(args) => cli::report::run(args),
         Command::Reproduce(args) => cli::reproduce::run(args),
+        Command::Speed(args) => cli::speed::run(args),
         Command::Gate(args) => match cli::gate::run(args) {
             // A failed gate is a verdict, not an error: exit 1 after its diff.
             Ok(false) => return ExitCode::from(1),

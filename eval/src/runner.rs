@@ -114,7 +114,7 @@ pub struct IndexedResult {
 }
 
 /// A running detector.
-trait Session {
+pub(crate) trait Session {
     fn detect(&mut self, image: &str, path: &Path) -> Result<ImageResult>;
     /// Resource counters now.
     fn usage(&self) -> Option<resources::Usage>;
@@ -356,6 +356,22 @@ impl Drop for Subprocess {
     }
 }
 
+/// Starts `spec`: builds our detector, or starts the peer's process.
+pub(crate) fn start(spec: &DetectorSpec) -> Result<Box<dyn Session>> {
+    Ok(match spec {
+        DetectorSpec::CopperTag(config) => Box::new(InProcess {
+            detector: coppertag::detect::Detector::new(config.clone()).map_err(|e| {
+                EvalError::Detector {
+                    detector: "coppertag".into(),
+                    message: e.to_string(),
+                }
+            })?,
+            config: config.clone(),
+        }),
+        DetectorSpec::Subprocess { name, command } => Box::new(Subprocess::start(name, command)?),
+    })
+}
+
 /// The outcome of a run.
 #[derive(Debug, Clone)]
 pub struct RunOutput {
@@ -378,18 +394,7 @@ pub fn run(
     dataset: &Dataset,
     mut progress: impl FnMut(usize, usize),
 ) -> Result<RunOutput> {
-    let mut session: Box<dyn Session> = match spec {
-        DetectorSpec::CopperTag(config) => Box::new(InProcess {
-            detector: coppertag::detect::Detector::new(config.clone()).map_err(|e| {
-                EvalError::Detector {
-                    detector: "coppertag".into(),
-                    message: e.to_string(),
-                }
-            })?,
-            config: config.clone(),
-        }),
-        DetectorSpec::Subprocess { name, command } => Box::new(Subprocess::start(name, command)?),
-    };
+    let mut session = start(spec)?;
     let started_unix_s = std::time::SystemTime::now()
         .duration_since(std::time::UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());

@@ -5,17 +5,21 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
-use coppertag_eval::gate::{baseline_of, check, Baseline, Tolerances};
+use coppertag_eval::gate::{baseline_of, check, check_speed, Baseline, Tolerances};
+use coppertag_eval::speed::SpeedReport;
 
 use super::evaluate::read_summaries;
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:\n  \
-    coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json\n  \
-    coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json --update\n\n\
+    coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json \\\n      \
+    --speed build/quick/results/speed.json\n  \
+    coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json \\\n      \
+    --speed build/quick/results/speed.json --update\n\n\
     Fails (exit 1) when a detection rate falls, wrong ids, false positives or duplicates grow, the median\n\
-    or p95 corner error grows by more than --corner-px or --corner-fraction (the larger), or our median\n\
-    time relative to a peer measured in the same run grows by more than --time-ratio.")]
+    or p95 corner error grows by more than --corner-px or --corner-fraction (the larger), or, for a peer,\n\
+    the whole 95% noise band of our time over the peer's (from `coppertag speed`) lies above the\n\
+    baseline ratio times 1 + --time-ratio. Exit 2: unreadable input.")]
 pub struct GateArgs {
     /// Committed baseline (JSON).
     #[arg(long)]
@@ -25,16 +29,21 @@ pub struct GateArgs {
     #[arg(long)]
     pub summary: PathBuf,
 
+    /// speed.json from `coppertag speed` (required when the baseline has
+    /// speed ratios).
+    #[arg(long)]
+    pub speed: Option<PathBuf>,
+
     /// Absolute corner-error growth allowed, px.
-    #[arg(long, default_value_t = 0.05)]
+    #[arg(long, default_value_t = Tolerances::default().corner_px)]
     pub corner_px: f64,
 
     /// Relative corner-error growth allowed.
-    #[arg(long, default_value_t = 0.10)]
+    #[arg(long, default_value_t = Tolerances::default().corner_fraction)]
     pub corner_fraction: f64,
 
-    /// Relative growth allowed in our time over a peer's.
-    #[arg(long, default_value_t = 0.25)]
+    /// Relative growth allowed in our time over a peer's, beyond the noise band.
+    #[arg(long, default_value_t = Tolerances::default().time_ratio)]
     pub time_ratio: f64,
 
     /// Write the summary as the new baseline instead of checking.
@@ -45,8 +54,31 @@ pub struct GateArgs {
 /// Runs the subcommand; returns whether the gate passed.
 pub fn run(args: &GateArgs) -> Result<bool> {
     let summaries = read_summaries(&args.summary)?;
+    let speed: Option<SpeedReport> = match &args.speed {
+        None => None,
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            Some(
+                serde_json::from_str(&text)
+                    .with_context(|| format!("{}: not a `coppertag speed` file", p.display()))?,
+            )
+        }
+    };
+    if let Some(s) = speed.as_ref().filter(|s| s.options.slowdown != 1.0) {
+        if args.update {
+            anyhow::bail!(
+                "refusing to make a baseline from a deliberately slowed run (slowdown {})",
+                s.options.slowdown
+            );
+        }
+    }
     if args.update {
-        let b = baseline_of(&summaries, "coppertag gate --update (make baseline)");
+        let b = baseline_of(
+            &summaries,
+            speed.as_ref(),
+            "coppertag gate --update (make baseline)",
+        );
         write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
         eprintln!(
             "wrote baseline {} ({} entries)",
@@ -68,20 +100,38 @@ pub fn run(args: &GateArgs) -> Result<bool> {
             anyhow::bail!("{name} must be a non-negative number");
         }
     }
-    let fails = check(
-        &baseline,
-        &summaries,
-        Tolerances {
-            corner_px: args.corner_px,
-            corner_fraction: args.corner_fraction,
-            time_ratio: args.time_ratio,
-        },
-    );
+    let tol = Tolerances {
+        corner_px: args.corner_px,
+        corner_fraction: args.corner_fraction,
+        time_ratio: args.time_ratio,
+    };
+    let mut fails = check(&baseline, &summaries, tol);
+    match &speed {
+        Some(speed) => {
+            if speed.options.slowdown != 1.0 {
+                eprintln!(
+                    "note: this speed run slowed ours {}x on purpose",
+                    speed.options.slowdown
+                );
+            }
+            for v in check_speed(&baseline, speed, tol) {
+                eprintln!("{v}");
+                if v.failed {
+                    fails.push(v.to_string());
+                }
+            }
+        }
+        None if !baseline.speed_ratio_vs.is_empty() => anyhow::bail!(
+            "{} has speed ratios: give --speed (from `coppertag speed`)",
+            args.baseline.display()
+        ),
+        None => eprintln!("note: no speed ratios in the baseline; speed not checked"),
+    }
     if fails.is_empty() {
         eprintln!(
             "gate passed: {} entries, {} speed ratios checked",
             baseline.entries.len(),
-            baseline.time_ratio_vs.len()
+            baseline.speed_ratio_vs.len()
         );
         return Ok(true);
     }

@@ -8,4 +8,5 @@ pub mod progress;
 pub mod report;
 pub mod reproduce;
 pub mod run;
+pub mod speed;
 pub mod synth;
