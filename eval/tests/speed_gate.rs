@@ -25,7 +25,11 @@ fn slowed(run: &SpeedReport, factor: f64) -> SpeedReport {
 #[test]
 fn the_saved_run_passes_against_itself_with_bands_around_the_median() {
     let run = saved_run();
-    assert_eq!(run.peers.len(), 3, "apriltag3, aruco3 and stag were measured");
+    assert_eq!(
+        run.peers.len(),
+        3,
+        "apriltag3, aruco3 and stag were measured"
+    );
     for (peer, p) in &run.peers {
         assert!(p.frames.len() >= 50, "{peer}: {} frames", p.frames.len());
         assert!(
