@@ -131,12 +131,8 @@ fn detections_match_the_golden_file() {
         eprintln!("wrote {}", path.display());
         return;
     }
-    let want = std::fs::read_to_string(&path).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e} (create it with COPPERTAG_BLESS=1)",
-            path.display()
-        )
-    });
+    let want = std::fs::read_to_string(&path)
+        .unwrap_or_else(|e| panic!("{}: {e} (create it with COPPERTAG_BLESS=1)", path.display()));
     let diff: Vec<String> = want
         .lines()
         .zip(got.lines())
