@@ -72,6 +72,9 @@ pub fn tag_pose(corners: &[[f64; 2]; 4], k: &Intrinsics, tag_side: f64) -> Resul
     if !(k.fx.is_finite() && k.fy.is_finite() && k.fx > 0.0 && k.fy > 0.0) {
         return Err(bad("intrinsics", "focal lengths must be positive"));
     }
+    if !(k.cx.is_finite() && k.cy.is_finite()) {
+        return Err(bad("intrinsics", "the principal point must be finite"));
+    }
     let h = tag_side / 2.0;
     let model = [[-h, -h], [-h, h], [h, h], [h, -h]];
     let norm: [[f64; 2]; 4] = corners.map(|p| [(p[0] - k.cx) / k.fx, (p[1] - k.cy) / k.fy]);
@@ -252,6 +255,11 @@ mod tests {
         };
         let c = [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]];
         assert!(tag_pose(&c, &k, 0.0).is_err());
+        let no_centre = Intrinsics { cx: f64::NAN, ..k };
+        assert!(matches!(
+            tag_pose(&c, &no_centre, 1.0),
+            Err(Error::InvalidParameter { .. })
+        ));
         assert!(matches!(
             tag_pose(&[[0.0, 0.0]; 4], &k, 1.0),
             Err(Error::PoseFailed { .. })
