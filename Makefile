@@ -15,7 +15,7 @@ GATE_BIN := target/ci/coppertag
 QUICK   ?=
 QUICKDIR := build/quick
 
-.PHONY: all build gate-build test lint venv bench reproduce baseline gate quick-run speed gate-slowdown clean
+.PHONY: all build gate-build test lint venv wheel python-test bench-python bench reproduce baseline gate quick-run speed gate-slowdown clean
 
 all: build
 
@@ -27,11 +27,34 @@ gate-build:
 
 # Python virtual environment for the peer detectors (AprilTag 3, ArUco 3,
 # STag) and the mcap reader, pinned in eval/peers/requirements.txt.
+# Also maturin and pytest for the Python package (detector/python/requirements.txt).
 venv: $(VENV)/.installed
-$(VENV)/.installed: eval/peers/requirements.txt
+$(VENV)/.installed: eval/peers/requirements.txt detector/python/requirements.txt
 	$(PYTHON) -m venv $(VENV)
-	$(VPY) -m pip install --quiet --disable-pip-version-check -r eval/peers/requirements.txt
+	$(VPY) -m pip install --quiet --disable-pip-version-check -r eval/peers/requirements.txt \
+	  -r detector/python/requirements.txt
 	touch $@
+
+# The Python package (`import coppertag`, detector/python/): one abi3 wheel
+# into target/wheels/, built with the `ci` profile in the workspace's target
+# dir, so the coppertag crates compiled by `cargo test` are reused.
+WHEELS := target/wheels
+wheel: venv
+	rm -f $(WHEELS)/coppertag-*.whl
+	$(VPY) -m maturin build --quiet --profile ci --locked -m detector/python/Cargo.toml --out $(WHEELS)
+
+# The wheel installed into .venv, then its pytest suite (which also installs
+# it into a fresh venv, and compares with the `coppertag` binary).
+python-test: wheel gate-build
+	$(VPY) -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps $(WHEELS)/coppertag-*.whl
+	COPPERTAG_BIN=$(GATE_BIN) $(VPY) -m pytest -q detector/python/tests
+
+# Binding overhead and GIL release, measured: Python's median detect time
+# against the criterion benchmark's (both `ci` profile, same 1080p frames),
+# and two threads against one. Timings are noisy on a busy machine.
+bench-python: python-test
+	COPPERTAG_BENCH_FRAMES=target/bench-frames $(CARGO) bench -p coppertag --bench detect --profile ci --locked -- detect_1080p
+	$(VPY) detector/python/bench/bench_python.py --frames target/bench-frames --criterion target/criterion
 
 # Clippy runs under the `ci` profile too, so build scripts and proc-macros
 # are compiled once for lint and tests alike.
@@ -42,6 +65,7 @@ lint:
 test: venv lint
 	COPPERTAG_REQUIRE_VENV=1 $(CARGO) test --workspace --locked --profile ci
 	$(VPY) eval/peers/selftest.py
+	$(MAKE) python-test
 	$(MAKE) gate
 
 # The regression gate: the QUICK sets (a tenth of every sweep) through all

@@ -99,9 +99,12 @@ impl Detection {
 
     fn __repr__(&self) -> String {
         let d = &self.inner;
+        let flag = |b: bool| if b { "True" } else { "False" };
+        let e = d.estimated.map(flag);
         format!(
-            "Detection(family={:?}, id={}, center=({:.2}, {:.2}), corrected={}, estimated={:?})",
-            d.family, d.id, d.center[0], d.center[1], d.corrected, d.estimated
+            "Detection(family='{}', id={}, center=({:.2}, {:.2}), corrected={}, \
+             estimated=({}, {}, {}, {}))",
+            d.family, d.id, d.center[0], d.center[1], d.corrected, e[0], e[1], e[2], e[3]
         )
     }
 }
