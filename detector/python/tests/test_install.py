@@ -24,10 +24,8 @@ assert not any(p and pathlib.Path(p).resolve() == pathlib.Path(sys.argv[1]).reso
 img = np.pad(coppertag.generate("ct14", 113, px=200), 30, constant_values=255)
 found = coppertag.Detector().detect(img)
 assert [(d.family, d.id) for d in found] == [("ct14", 113)], found
-site = pathlib.Path(coppertag.__file__).parent
-assert (site / "coppertag" / "__init__.pyi").exists() or (site / "coppertag.pyi").exists() or (
-    pathlib.Path(coppertag.__file__).with_name("__init__.pyi").exists()), list(site.iterdir())
-assert pathlib.Path(coppertag.__file__).with_name("py.typed").exists()
+package = pathlib.Path(coppertag.__file__).parent
+assert (package / "__init__.pyi").exists() and (package / "py.typed").exists(), list(package.iterdir())
 print("ok", coppertag.__version__)
 """
 
