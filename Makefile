@@ -53,7 +53,7 @@ python-test: wheel gate-build
 # against the criterion benchmark's (both `ci` profile, same 1080p frames),
 # and two threads against one. Timings are noisy on a busy machine.
 bench-python: python-test
-	COPPERTAG_BENCH_FRAMES=target/bench-frames $(CARGO) bench -p coppertag --bench detect --profile ci --locked -- detect_1080p
+	COPPERTAG_BENCH_FRAMES=$(CURDIR)/target/bench-frames $(CARGO) bench -p coppertag --bench detect --profile ci --locked -- detect_1080p
 	$(VPY) detector/python/bench/bench_python.py --frames target/bench-frames --criterion target/criterion
 
 # Clippy runs under the `ci` profile too, so build scripts and proc-macros

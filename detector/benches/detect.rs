@@ -24,8 +24,15 @@ fn frame(d: f64) -> (GrayImage, [[f64; 2]; 4]) {
 
 fn bench(c: &mut Criterion) {
     let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    // `make bench-python` times the Python binding on the very same frames.
+    let save_to = std::env::var_os("COPPERTAG_BENCH_FRAMES").map(std::path::PathBuf::from);
     for d in [1.0, 2.8] {
         let (img, truth) = frame(d);
+        if let Some(dir) = &save_to {
+            std::fs::create_dir_all(dir).expect("frames directory");
+            img.save(dir.join(format!("detect_1080p_one_tag_{d}m.png")))
+                .expect("frame saved");
+        }
         let found = det.detect(&img);
         assert_eq!(
             found.len(),

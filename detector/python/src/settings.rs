@@ -39,7 +39,10 @@ pub fn defaults_dict(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
 }
 
 /// The settings of `config` (families left out) as a Python dict.
-pub fn settings_dict<'py>(py: Python<'py>, config: &DetectorConfig) -> PyResult<Bound<'py, PyDict>> {
+pub fn settings_dict<'py>(
+    py: Python<'py>,
+    config: &DetectorConfig,
+) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
     if let Ok(Value::Object(map)) = serde_json::to_value(config) {
         for (name, value) in map.into_iter().filter(|(k, _)| k != FAMILIES) {
@@ -95,7 +98,9 @@ fn families(obj: &Bound<'_, PyAny>) -> PyResult<Vec<FamilySetting>> {
     }
     let mut out = Vec::new();
     for item in obj.try_iter().map_err(|_| {
-        PyTypeError::new_err("families must be a sequence of family names, e.g. (\"ct14\", \"ct8\")")
+        PyTypeError::new_err(
+            "families must be a sequence of family names, e.g. (\"ct14\", \"ct8\")",
+        )
     })? {
         let item = item?;
         let setting = if let Ok(name) = item.extract::<String>() {
@@ -140,7 +145,10 @@ pub fn config(
             let v = py_to_json(&value).ok_or_else(|| {
                 PyTypeError::new_err(format!(
                     "setting {name}: expected a number or a bool, got {}",
-                    value.get_type().name().map_or("?".into(), |n| n.to_string())
+                    value
+                        .get_type()
+                        .name()
+                        .map_or("?".into(), |n| n.to_string())
                 ))
             })?;
             json.insert(name.clone(), v);

@@ -1,0 +1,105 @@
+#!/usr/bin/env python3
+"""Binding overhead and GIL release of the `coppertag` Python package.
+
+1. Overhead: the median time of ``Detector.detect`` called from Python on
+   the criterion benchmark's frames (``detector/benches/detect.rs`` saves
+   them when COPPERTAG_BENCH_FRAMES is set), against criterion's median for
+   the same frames, same build profile (``make bench-python`` runs both).
+2. Threads: two detectors on two frames, in two threads, against one
+   thread doing both; the ratio is the speed-up the released GIL gives
+   (at most 2 on two free cores).
+
+Timings are wall-clock and noisy on a machine running other work; each
+figure is a median (overhead) or the best of several rounds (threads).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import threading
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+import coppertag
+
+#: Detect calls timed per frame for the overhead median.
+CALLS = 300
+#: Frames per thread in one round of the thread comparison.
+ROUND_CALLS = 40
+#: Rounds of the thread comparison; the best of each mode is kept.
+ROUNDS = 5
+
+
+def median_detect_s(detector: coppertag.Detector, frame: np.ndarray) -> float:
+    for _ in range(10):
+        detector.detect(frame)
+    times = []
+    for _ in range(CALLS):
+        t0 = time.perf_counter()
+        detector.detect(frame)
+        times.append(time.perf_counter() - t0)
+    return statistics.median(times)
+
+
+def criterion_median_s(root: Path, name: str) -> float:
+    est = json.loads((root / name / "new" / "estimates.json").read_text())
+    return est["median"]["point_estimate"] * 1e-9
+
+
+def threads(frames: list[np.ndarray]) -> tuple[float, float]:
+    """(one thread doing both frames, two threads one frame each): best seconds."""
+    detectors = [coppertag.Detector() for _ in frames]
+
+    def run(det: coppertag.Detector, frame: np.ndarray) -> None:
+        for _ in range(ROUND_CALLS):
+            det.detect(frame)
+
+    serial, parallel = [], []
+    for _ in range(ROUNDS):
+        t0 = time.perf_counter()
+        for det, frame in zip(detectors, frames):
+            run(det, frame)
+        serial.append(time.perf_counter() - t0)
+        workers = [threading.Thread(target=run, args=(d, f)) for d, f in zip(detectors, frames)]
+        t0 = time.perf_counter()
+        for w in workers:
+            w.start()
+        for w in workers:
+            w.join()
+        parallel.append(time.perf_counter() - t0)
+    return min(serial), min(parallel)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--frames", type=Path, required=True, help="frames saved by the criterion bench")
+    parser.add_argument("--criterion", type=Path, required=True, help="criterion's output dir")
+    args = parser.parse_args()
+    paths = sorted(args.frames.glob("detect_1080p_one_tag_*m.png"))
+    if not paths:
+        parser.error(f"no frames in {args.frames}: run the criterion bench with COPPERTAG_BENCH_FRAMES")
+    frames = []
+    for path in paths:
+        frame = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if frame is None or frame.ndim != 2:
+            parser.error(f"{path}: not a grey image")
+        frames.append(frame)
+        detector = coppertag.Detector()
+        assert len(detector.detect(frame)) == 1, f"{path}: the frame must hold one tag"
+        py = median_detect_s(detector, frame)
+        rust = criterion_median_s(args.criterion, path.stem)
+        print(f"{path.stem}: python median {py * 1e3:.3f} ms, criterion median {rust * 1e3:.3f} ms, "
+              f"python/rust {py / rust:.3f} ({(py / rust - 1) * 100:+.1f}%)")
+    serial, parallel = threads(frames)
+    print(f"two frames x {ROUND_CALLS}: one thread {serial:.3f} s, two threads {parallel:.3f} s, "
+          f"speed-up {serial / parallel:.2f}x (best of {ROUNDS})")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
