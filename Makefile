@@ -47,7 +47,7 @@ wheel: venv
 # it into a fresh venv, and compares with the `coppertag` binary).
 python-test: wheel gate-build
 	$(VPY) -m pip install --quiet --disable-pip-version-check --force-reinstall --no-deps $(WHEELS)/coppertag-*.whl
-	COPPERTAG_BIN=$(GATE_BIN) $(VPY) -m pytest -q detector/python/tests
+	COPPERTAG_BIN=$(GATE_BIN) $(VPY) -m pytest -q -p no:cacheprovider detector/python/tests
 
 # Binding overhead and GIL release, measured: Python's median detect time
 # against the criterion benchmark's (both `ci` profile, same 1080p frames),

@@ -7,7 +7,7 @@
 //! added there is a keyword here with no change to this file.
 
 use coppertag::{DetectorConfig, FamilySetting};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyString, PyTuple};
 use serde_json::{Map, Value};
@@ -15,27 +15,23 @@ use serde_json::{Map, Value};
 /// The serialised key of the family list, which is a keyword of its own.
 const FAMILIES: &str = "families";
 
-/// The default settings as a JSON object (families left out).
-fn default_settings() -> Map<String, Value> {
-    match serde_json::to_value(DetectorConfig::default()) {
+/// The settings of `config` as a JSON object, families left out.
+fn settings_json(config: &DetectorConfig) -> PyResult<Map<String, Value>> {
+    match serde_json::to_value(config) {
         Ok(Value::Object(mut map)) => {
             map.remove(FAMILIES);
-            map
+            Ok(map)
         }
-        // The config is a plain struct of numbers and flags: it always
-        // serialises to an object.
-        _ => unreachable!("DetectorConfig serialises to a JSON object"),
+        other => Err(PyRuntimeError::new_err(format!(
+            "detector settings do not serialise to an object: {other:?}"
+        ))),
     }
 }
 
 /// Every setting's name and default value, as Python values (what
 /// `coppertag.DEFAULT_SETTINGS` holds).
 pub fn defaults_dict(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
-    let dict = PyDict::new(py);
-    for (name, value) in default_settings() {
-        dict.set_item(name, json_to_py(py, &value)?)?;
-    }
-    Ok(dict)
+    settings_dict(py, &DetectorConfig::default())
 }
 
 /// The settings of `config` (families left out) as a Python dict.
@@ -44,10 +40,8 @@ pub fn settings_dict<'py>(
     config: &DetectorConfig,
 ) -> PyResult<Bound<'py, PyDict>> {
     let dict = PyDict::new(py);
-    if let Ok(Value::Object(map)) = serde_json::to_value(config) {
-        for (name, value) in map.into_iter().filter(|(k, _)| k != FAMILIES) {
-            dict.set_item(name, json_to_py(py, &value)?)?;
-        }
+    for (name, value) in settings_json(config)? {
+        dict.set_item(name, json_to_py(py, &value)?)?;
     }
     Ok(dict)
 }
@@ -131,7 +125,7 @@ pub fn config(
     settings: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<DetectorConfig> {
     let defaults = DetectorConfig::default();
-    let mut json = default_settings();
+    let mut json = settings_json(&defaults)?;
     if let Some(settings) = settings {
         for (key, value) in settings.iter() {
             let name: String = key.extract()?;
