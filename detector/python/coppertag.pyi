@@ -137,7 +137,7 @@ def reads_in_place(image: npt.NDArray[np.uint8]) -> bool:
 
 def generate(family: str, id: int, px: int = 1024) -> npt.NDArray[np.uint8]:
     """Tag `id` of `family` as a px x px uint8 image (white background; the data
-    square is the middle half). ValueError for a bad family, id or px (1..=16384)."""
+    square is the middle half). ValueError for a bad family, id or px (16..=16384)."""
 
 def generate_svg(family: str, id: int, size_mm: float = 100.0) -> str:
     """Tag `id` of `family` as SVG text, size_mm millimetres on a side (the whole tag)."""

@@ -286,6 +286,12 @@ pub fn to_gray(pixmap: &Pixmap) -> GrayImage {
         .expect("pixmap size matches its data")
 }
 
+/// Tag image sides, in pixels, that the generators (`coppertag generate`,
+/// Python's `coppertag.generate`) accept: from 16 (the data square is then 8
+/// px, under one pixel per cell of ct14: smaller is not a tag any more) to
+/// 16384 (a 16k x 16k grey image is 256 MB).
+pub const TAG_PX_RANGE: std::ops::RangeInclusive<u32> = 16..=16_384;
+
 /// Renders the printed tag (the whole 2S x 2S square) as a `px` x `px`
 /// anti-aliased grey image. `None` when `px` is zero or too large for
 /// tiny-skia.

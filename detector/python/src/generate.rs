@@ -3,16 +3,12 @@
 
 use coppertag::geometry::tag_shapes;
 use coppertag::Family;
-use coppertag_synth::raster::tag_image;
+use coppertag_synth::raster::{tag_image, TAG_PX_RANGE};
 use coppertag_synth::svg::tag_svg;
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray2};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-
-/// Largest image side made, in pixels: a 16k x 16k grey image is 256 MB
-/// (the same cap as `coppertag generate --px`).
-pub const MAX_PX: u32 = 16_384;
 
 fn family(name: &str) -> PyResult<&'static Family> {
     Family::by_name(name).map_err(crate::errors::to_py)
@@ -22,7 +18,7 @@ fn family(name: &str) -> PyResult<&'static Family> {
 /// background, the whole tag; its data square is the middle half).
 ///
 /// Raises ValueError for an unknown family, an id out of the family's
-/// range or px outside 1..=16384.
+/// range or px outside 16..=16384.
 #[pyfunction]
 #[pyo3(signature = (family, id, px = 1024))]
 pub fn generate<'py>(
@@ -32,9 +28,11 @@ pub fn generate<'py>(
     px: u32,
 ) -> PyResult<Bound<'py, PyArray2<u8>>> {
     let fam = self::family(family)?;
-    if !(1..=MAX_PX).contains(&px) {
+    if !TAG_PX_RANGE.contains(&px) {
         return Err(PyValueError::new_err(format!(
-            "invalid parameter px: {px} (must be 1..={MAX_PX})"
+            "invalid parameter px: {px} (must be {}..={}, as coppertag generate --px)",
+            TAG_PX_RANGE.start(),
+            TAG_PX_RANGE.end()
         )));
     }
     let shapes = tag_shapes(fam, id).map_err(crate::errors::to_py)?;

@@ -37,8 +37,8 @@ def test_bad_input() -> None:
         coppertag.generate("ct9", 1)
     with pytest.raises(ValueError, match="out of range"):
         coppertag.generate("ct14", 256)
-    with pytest.raises(ValueError, match="px"):
-        coppertag.generate("ct14", 1, px=0)
+    with pytest.raises(ValueError, match="px: 15 .must be 16..=16384"):
+        coppertag.generate("ct14", 1, px=15)
     with pytest.raises(ValueError, match="px"):
         coppertag.generate("ct14", 1, px=100_000)
     with pytest.raises(ValueError):

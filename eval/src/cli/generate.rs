@@ -6,13 +6,10 @@ use anyhow::{bail, Context, Result};
 use clap::Args;
 use coppertag::geometry::tag_shapes;
 use coppertag::Family;
-use coppertag_synth::raster::tag_image;
+use coppertag_synth::raster::{tag_image, TAG_PX_RANGE};
 use coppertag_synth::svg::{sheet_svgs, tag_svg, Paper};
 
 use coppertag_eval::atomic::write_atomic;
-
-/// Largest PNG side accepted, in pixels (a 16k x 16k grey image is 256 MB).
-const MAX_PX: u32 = 16_384;
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:\n  \
@@ -166,8 +163,13 @@ pub fn run(args: &GenerateArgs) -> Result<()> {
     let family = Family::by_name(&args.family)?;
     let size_mm = parse_size_mm(&args.size)?;
     let format = format_of(&args.output)?;
-    if matches!(format, Format::Png) && !(16..=MAX_PX).contains(&args.px) {
-        bail!("--px {} is outside 16..={MAX_PX}", args.px);
+    if matches!(format, Format::Png) && !TAG_PX_RANGE.contains(&args.px) {
+        bail!(
+            "--px {} is outside {}..={}",
+            args.px,
+            TAG_PX_RANGE.start(),
+            TAG_PX_RANGE.end()
+        );
     }
     let ids = match (&args.ids, args.id) {
         (Some(list), _) => parse_ids(list, family)?,
