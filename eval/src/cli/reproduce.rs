@@ -18,7 +18,7 @@ use coppertag_eval::runner::{self, DetectorSpec};
 use coppertag_eval::truth::Dataset;
 use coppertag_synth::{generate, DatasetSpec, GenerateOptions};
 
-use super::evaluate::{evaluate_all, write_summaries};
+use super::evaluate::{evaluate_all, evaluate_wild, load_all, write_summaries, write_wild};
 use super::progress::bar;
 use super::report::preamble;
 
@@ -27,7 +27,9 @@ use super::report::preamble;
     coppertag reproduce                      # everything, into build/ and reports/\n  \
     coppertag reproduce --quick --work build/quick --reports build/quick/reports\n\n\
     Spec files are datasets/<dir>/<marker>-<name>.toml; <marker> (coppertag, apriltag3, aruco3, stag)\n\
-    picks the detector that runs on the dataset.")]
+    picks the detector that runs on the dataset. Specs in --wild (default datasets/wild, skipped when\n\
+    absent) without a marker prefix are run by every detector; the wild runs make the report's wild\n\
+    section (rough detections, pose error, jitter, false positives per MP, factor curves).")]
 pub struct ReproduceArgs {
     /// A tenth of every sweep (every 10th image).
     #[arg(long)]
@@ -40,6 +42,13 @@ pub struct ReproduceArgs {
     /// Working directory for datasets, runs and results (replaced).
     #[arg(long, default_value = "build")]
     pub work: PathBuf,
+
+    /// Directory of the wild (sampled-scene) specs; skipped when absent.
+    /// A spec named <marker>-*.toml runs that marker's detector; any other
+    /// (a tag-free set, say) runs every detector. Their runs make the
+    /// report's wild section.
+    #[arg(long, default_value = "datasets/wild")]
+    pub wild: PathBuf,
 
     /// Where the tables and figures go.
     #[arg(long, default_value = "reports")]
@@ -90,26 +99,62 @@ fn marker_of(spec: &Path) -> String {
     stem.split('-').next().unwrap_or_default().to_string()
 }
 
+/// One spec to render and the detectors to run on it.
+struct Job {
+    spec: PathBuf,
+    detectors: Vec<String>,
+    wild: bool,
+}
+
+fn jobs(args: &ReproduceArgs) -> Result<Vec<Job>> {
+    let wanted = |m: &str| args.only.is_empty() || args.only.iter().any(|o| o == m);
+    let mut out: Vec<Job> = spec_files(&args.specs)?
+        .into_iter()
+        .filter(|s| wanted(&marker_of(s)))
+        .map(|spec| Job {
+            detectors: vec![marker_of(&spec)],
+            spec,
+            wild: false,
+        })
+        .collect();
+    for spec in spec_files(std::slice::from_ref(&args.wild))? {
+        let marker = marker_of(&spec);
+        let detectors: Vec<String> = if runner::KNOWN.contains(&marker.as_str()) {
+            vec![marker]
+        } else {
+            runner::KNOWN.iter().map(|s| s.to_string()).collect()
+        };
+        let detectors: Vec<String> = detectors.into_iter().filter(|d| wanted(d)).collect();
+        if !detectors.is_empty() {
+            out.push(Job {
+                spec,
+                detectors,
+                wild: true,
+            });
+        }
+    }
+    Ok(out)
+}
+
 /// Runs the subcommand.
 pub fn run(args: &ReproduceArgs) -> Result<()> {
-    let specs: Vec<PathBuf> = spec_files(&args.specs)?
-        .into_iter()
-        .filter(|s| args.only.is_empty() || args.only.contains(&marker_of(s)))
-        .collect();
-    if specs.is_empty() {
+    let jobs = jobs(args)?;
+    if jobs.is_empty() {
         anyhow::bail!("no dataset specs found in {:?}", args.specs);
     }
     let every = if args.quick { 10 } else { 1 };
     let mut failures = Vec::new();
     let mut runs = Vec::new();
+    let mut wild_runs = Vec::new();
     std::fs::create_dir_all(&args.work)
         .with_context(|| format!("cannot create {}", args.work.display()))?;
-    for (i, spec_path) in specs.iter().enumerate() {
+    for (i, job) in jobs.iter().enumerate() {
+        let spec_path = &job.spec;
         let stem = spec_path
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let label = format!("[{}/{}] {stem}", i + 1, specs.len());
+        let label = format!("[{}/{}] {stem}", i + 1, jobs.len());
         let dataset_dir = args.work.join("datasets").join(&stem);
         let rendered = DatasetSpec::load(spec_path)
             .map_err(anyhow::Error::from)
@@ -139,36 +184,63 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
             failures.push(format!("{}: {e:#}", spec_path.display()));
             continue;
         }
-        let marker = marker_of(spec_path);
-        let detector = match DetectorSpec::by_name(&marker, &args.python, &args.peers) {
-            Ok(d) => d,
-            Err(e) => {
-                failures.push(format!("{}: {e}", spec_path.display()));
-                continue;
+        for marker in &job.detectors {
+            let detector = match DetectorSpec::by_name(marker, &args.python, &args.peers) {
+                Ok(d) => d,
+                Err(e) => {
+                    failures.push(format!("{}: {e}", spec_path.display()));
+                    continue;
+                }
+            };
+            // A spec run by one detector keeps its old run name.
+            let run_name = if job.detectors.len() == 1 && marker_of(spec_path) == *marker {
+                stem.clone()
+            } else {
+                format!("{stem}@{marker}")
+            };
+            let result = Dataset::open(&dataset_dir)
+                .map_err(anyhow::Error::from)
+                .and_then(|ds| {
+                    let pb = bar(
+                        ds.images.len(),
+                        &format!("{label} detect {marker}"),
+                        args.quiet,
+                    );
+                    let out = runner::run(&detector, &ds, |d, _| pb.set_position(d as u64));
+                    pb.finish_and_clear();
+                    let out = out?;
+                    let path = args.work.join("runs").join(format!("{run_name}.mcap"));
+                    runlog::save(&path, &out)?;
+                    Ok(path)
+                });
+            match result {
+                Ok(path) => {
+                    if job.wild {
+                        wild_runs.push(path.clone());
+                    }
+                    runs.push(path);
+                }
+                Err(e) => failures.push(format!("{run_name}: {e:#}")),
             }
-        };
-        let result = Dataset::open(&dataset_dir)
-            .map_err(anyhow::Error::from)
-            .and_then(|ds| {
-                let pb = bar(ds.images.len(), &format!("{label} detect"), args.quiet);
-                let out = runner::run(&detector, &ds, |d, _| pb.set_position(d as u64));
-                pb.finish_and_clear();
-                let out = out?;
-                let path = args.work.join("runs").join(format!("{stem}.mcap"));
-                runlog::save(&path, &out)?;
-                Ok(path)
-            });
-        match result {
-            Ok(path) => runs.push(path),
-            Err(e) => failures.push(format!("{stem}: {e:#}")),
         }
         if !args.quiet {
             eprintln!("{label}: done");
         }
     }
-    let (summaries, errors) = evaluate_all(&runs, None, MatchRule::default());
+    let rule = MatchRule::default();
+    let (summaries, errors) = evaluate_all(&runs, None, rule);
     failures.extend(errors);
     let results = args.work.join("results");
+    let wild = if wild_runs.is_empty() {
+        None
+    } else {
+        let (loaded, errors) = load_all(&wild_runs, None);
+        failures.extend(errors);
+        let (w, errors) = evaluate_wild(&loaded, rule);
+        failures.extend(errors);
+        write_wild(&results, &w)?;
+        Some(w)
+    };
     if !summaries.is_empty() {
         write_summaries(&results, &summaries)?;
         let machine = Machine {
@@ -185,6 +257,7 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
             &args.reports,
             machine,
             &preamble(&summaries, made_by),
+            wild.as_ref(),
         )?;
         write_atomic(&args.reports.join("README.md"), md.as_bytes())?;
         eprintln!(
