@@ -147,12 +147,8 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     let Some(n) = shards.first().map(|s| s.count) else {
         return Err(bad("no runs to merge".into()));
     };
-    let what = || {
-        format!(
-            "{} on {}",
-            parts[0].info.detector, parts[0].info.dataset
-        )
-    };
+    let label = format!("{} on {}", parts[0].info.detector, parts[0].info.dataset);
+    let what = || label.as_str();
     let mut seen = vec![false; n];
     for s in &shards {
         if s.count != n {

@@ -283,7 +283,7 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             images: {
                 let mut idx: Vec<(String, usize)> = tagged
                     .iter()
-                    .flat_map(|r| counted(r).into_iter().map(|o| (r.dataset.clone(), o.index)))
+                    .flat_map(|r| counted(r).into_iter().map(move |o| (r.dataset.clone(), o.index)))
                     .collect();
                 idx.sort();
                 idx.dedup();
@@ -364,7 +364,7 @@ fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
         let mut points = Vec::new();
         for sys in systems {
             let mut cells = vec![(0usize, 0usize, 0usize); labels.len()];
-            for (_, v, status) in obs.iter().filter(|(s, _, _)| s == sys) {
+            for (_, v, status) in obs.iter().filter(|(s, _, _)| *s == sys.as_str()) {
                 let k = match (&bins, v) {
                     (Some(b), FactorValue::Num(x)) => b.index(*x),
                     _ => labels.iter().position(|l| *l == v.label()),

@@ -120,7 +120,7 @@ pub fn load_all(runs: &[PathBuf], dataset: Option<&Path>) -> (Vec<Loaded>, Vec<S
                 let mut dirs: Vec<PathBuf> = parts.iter().map(|d| d.dir.clone()).collect();
                 dirs.sort();
                 dirs.dedup();
-                match shard::merge(logs).and_then(|run| Ok((run, shard::union(&parts)?))) {
+                match shard::merge(logs).and_then(|run| shard::union(&parts).map(|d| (run, d))) {
                     Ok((run, dataset)) => out.push(Loaded { run, dataset, dirs }),
                     Err(e) => errors.push(format!("{key}: {e}")),
                 }
