@@ -82,7 +82,10 @@ impl Draws {
         for (row, rec) in reader.deserialize::<Row>().enumerate() {
             let r = rec.map_err(|e| EvalError::bad(&path, format!("row {}: {e}", row + 2)))?;
             if r.factor.is_empty() {
-                return Err(EvalError::bad(&path, format!("row {}: empty factor", row + 2)));
+                return Err(EvalError::bad(
+                    &path,
+                    format!("row {}: empty factor", row + 2),
+                ));
             }
             let map = match r.marker_index {
                 Some(m) => d.marker.entry((r.index, m)).or_default(),
@@ -136,7 +139,11 @@ mod tests {
         assert_eq!(d.factors(3, 0)["roll_deg"], FactorValue::Num(-30.0));
         assert!(d.factors(3, 1).is_empty());
         assert!(Draws::open(&dir.path().join("none")).unwrap().is_none());
-        std::fs::write(dir.path().join(FILE), "index,marker_index,factor,value\nx,,a,1\n").unwrap();
+        std::fs::write(
+            dir.path().join(FILE),
+            "index,marker_index,factor,value\nx,,a,1\n",
+        )
+        .unwrap();
         let e = Draws::open(dir.path()).unwrap_err().to_string();
         assert!(e.contains("draws.csv") && e.contains("row 2"), "{e}");
     }

@@ -13,8 +13,8 @@
 
 use std::path::Path;
 
-use nalgebra::{Matrix3, Vector3};
 use coppertag_synth::camera::Camera;
+use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{EvalError, Result};

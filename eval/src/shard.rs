@@ -152,7 +152,11 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     let mut seen = vec![false; n];
     for s in &shards {
         if s.count != n {
-            return Err(bad(format!("{}: shards of {n} and of {} mixed", what(), s.count)));
+            return Err(bad(format!(
+                "{}: shards of {n} and of {} mixed",
+                what(),
+                s.count
+            )));
         }
         if std::mem::replace(&mut seen[s.index], true) {
             return Err(bad(format!("{}: shard {s} given twice", what())));
@@ -163,7 +167,11 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
         .map(|k| format!("{k}/{n}"))
         .collect();
     if !missing.is_empty() {
-        return Err(bad(format!("{}: missing shard(s) {}", what(), missing.join(", "))));
+        return Err(bad(format!(
+            "{}: missing shard(s) {}",
+            what(),
+            missing.join(", ")
+        )));
     }
     for p in &parts[1..] {
         let (a, b) = (&parts[0].info, &p.info);
@@ -200,7 +208,11 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     }
     images.sort_by_key(|m| m.index);
     if let Some(w) = images.windows(2).find(|w| w[0].index == w[1].index) {
-        return Err(bad(format!("{}: image {} is in two shards", what(), w[0].index)));
+        return Err(bad(format!(
+            "{}: image {} is in two shards",
+            what(),
+            w[0].index
+        )));
     }
     let mut info = parts[order[0]].info.clone();
     info.shard = String::new();

@@ -169,7 +169,8 @@ pub fn evaluate(
             // Not reached by the run: an error, and its markers missed.
             w.image_errors += 1;
             for m in truth {
-                w.outcomes.push(outcome(*index, m, draws, None, Status::Missed));
+                w.outcomes
+                    .push(outcome(*index, m, draws, None, Status::Missed));
             }
             continue;
         };
@@ -270,10 +271,7 @@ pub(crate) mod tests {
     use crate::truth::{test_marker, TruthMarker};
 
     /// A run of `detector` answering `detections` for image `index`.
-    pub(crate) fn run_of(
-        detector: &str,
-        images: Vec<(usize, Vec<DetectionRecord>)>,
-    ) -> RunLog {
+    pub(crate) fn run_of(detector: &str, images: Vec<(usize, Vec<DetectionRecord>)>) -> RunLog {
         RunLog {
             info: RunInfo {
                 detector: detector.into(),
@@ -358,7 +356,12 @@ pub(crate) mod tests {
         let status: Vec<Status> = w.outcomes.iter().map(|o| o.status).collect();
         assert_eq!(
             status,
-            [Status::Rough, Status::Correct, Status::Missed, Status::Rough]
+            [
+                Status::Rough,
+                Status::Correct,
+                Status::Missed,
+                Status::Rough
+            ]
         );
         assert_eq!(w.outcomes[0].corner_error_max_px, Some(4.0));
         // The exact copy is taken over the 2 px one.
@@ -375,7 +378,13 @@ pub(crate) mod tests {
         let run = run_of(
             "stag",
             vec![
-                (0, vec![det(1, square(10.0, 10.0, 30.0)), det(2, square(90.0, 10.0, 30.0))]),
+                (
+                    0,
+                    vec![
+                        det(1, square(10.0, 10.0, 30.0)),
+                        det(2, square(90.0, 10.0, 30.0)),
+                    ],
+                ),
                 (1, vec![det(3, square(10.0, 10.0, 30.0))]),
             ],
         );

@@ -113,7 +113,11 @@ fn category_table(c: &FactorCurve, out: &mut String) {
         out,
         "| {} | {} |\n|---|{}",
         c.factor,
-        systems.iter().map(|s| display(s)).collect::<Vec<_>>().join(" | "),
+        systems
+            .iter()
+            .map(|s| display(s))
+            .collect::<Vec<_>>()
+            .join(" | "),
         "---|".repeat(systems.len())
     );
     for l in labels {
@@ -185,7 +189,9 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
                 .map_or("-".into(), |(lo, hi)| format!("{lo:.0}-{hi:.0}"))
         );
     }
-    out.push_str("\nPer-system figures in `wild-systems.csv`, factor bins in `wild-factors.csv`.\n\n");
+    out.push_str(
+        "\nPer-system figures in `wild-systems.csv`, factor bins in `wild-factors.csv`.\n\n",
+    );
     for c in &w.factors {
         if c.bins.is_some() {
             curve_figure(c, dir, &mut out)?;

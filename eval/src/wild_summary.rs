@@ -169,7 +169,12 @@ fn counted(run: &WildRun) -> Vec<&MarkerOutcome> {
 fn sample_spread(points: &[Vector3<f64>]) -> f64 {
     let n = points.len() as f64;
     let mean = points.iter().sum::<Vector3<f64>>() / n;
-    (points.iter().map(|p| (p - mean).norm_squared()).sum::<f64>() / (n - 1.0)).sqrt()
+    (points
+        .iter()
+        .map(|p| (p - mean).norm_squared())
+        .sum::<f64>()
+        / (n - 1.0))
+        .sqrt()
 }
 
 /// Jitter of one group: (corner px, translation mm, rotation deg).
@@ -264,7 +269,10 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
                 jr.extend(r);
             }
         }
-        let times: Vec<f64> = mine.iter().flat_map(|r| r.times_ms.iter().copied()).collect();
+        let times: Vec<f64> = mine
+            .iter()
+            .flat_map(|r| r.times_ms.iter().copied())
+            .collect();
         let fp_free: usize = free.iter().map(|r| r.false_positives).sum();
         let mp_free: f64 = free.iter().map(|r| r.megapixels).sum();
         let min_side = curves
@@ -283,7 +291,11 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             images: {
                 let mut idx: Vec<(String, usize)> = tagged
                     .iter()
-                    .flat_map(|r| counted(r).into_iter().map(move |o| (r.dataset.clone(), o.index)))
+                    .flat_map(|r| {
+                        counted(r)
+                            .into_iter()
+                            .map(move |o| (r.dataset.clone(), o.index))
+                    })
                     .collect();
                 idx.sort();
                 idx.dedup();
@@ -329,10 +341,11 @@ fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
         for o in counted(r) {
             for (f, v) in &o.factors {
                 if f != JITTER_GROUP {
-                    by_factor
-                        .entry(f.as_str())
-                        .or_default()
-                        .push((r.detector.as_str(), v, o.status));
+                    by_factor.entry(f.as_str()).or_default().push((
+                        r.detector.as_str(),
+                        v,
+                        o.status,
+                    ));
                 }
             }
         }
@@ -434,7 +447,8 @@ impl WildSummary {
 
     /// `wild-factors.csv`: one row per factor, bin and system.
     pub fn factors_csv(&self) -> String {
-        let mut s = String::from("factor,kind,bin,label,lo,hi,system,markers,correct,rough,found_rate\n");
+        let mut s =
+            String::from("factor,kind,bin,label,lo,hi,system,markers,correct,rough,found_rate\n");
         for c in &self.factors {
             for p in &c.points {
                 let (kind, lo, hi) = match &c.bins {
@@ -550,7 +564,10 @@ mod tests {
                 outcomes.push(outcome(
                     outcomes.len(),
                     status,
-                    &[(SIDE_FACTOR, FactorValue::Num(side)), ("occluder_kind", kind)],
+                    &[
+                        (SIDE_FACTOR, FactorValue::Num(side)),
+                        ("occluder_kind", kind),
+                    ],
                 ));
             }
         }
@@ -561,7 +578,10 @@ mod tests {
         let sys: Vec<&str> = s.systems.iter().map(|r| r.system.as_str()).collect();
         assert_eq!(sys, ["apriltag3", "coppertag"]);
         let ours = &s.systems[1];
-        assert_eq!((ours.markers, ours.correct, ours.rough, ours.missed), (30, 23, 1, 6));
+        assert_eq!(
+            (ours.markers, ours.correct, ours.rough, ours.missed),
+            (30, 23, 1, 6)
+        );
         assert_eq!(ours.min_detectable_side_px, Some((30.0, 30.0)));
         assert_eq!(s.systems[0].min_detectable_side_px, None);
         let side = s.factors.iter().find(|c| c.factor == SIDE_FACTOR).unwrap();
@@ -571,8 +591,15 @@ mod tests {
             .iter()
             .find(|p| p.system == "coppertag" && p.bin == 1)
             .unwrap();
-        assert_eq!((ours_30.markers, ours_30.correct, ours_30.rough), (10, 8, 1));
-        let kind = s.factors.iter().find(|c| c.factor == "occluder_kind").unwrap();
+        assert_eq!(
+            (ours_30.markers, ours_30.correct, ours_30.rough),
+            (10, 8, 1)
+        );
+        let kind = s
+            .factors
+            .iter()
+            .find(|c| c.factor == "occluder_kind")
+            .unwrap();
         assert!(kind.bins.is_none());
         let labels: Vec<&str> = kind
             .points
@@ -581,6 +608,8 @@ mod tests {
             .map(|p| p.label.as_str())
             .collect();
         assert_eq!(labels, ["stick", "tape"]);
-        assert!(s.factors_csv().contains("occluder_kind,categorical,0,\"stick\",,,coppertag,15,"));
+        assert!(s
+            .factors_csv()
+            .contains("occluder_kind,categorical,0,\"stick\",,,coppertag,15,"));
     }
 }

@@ -61,11 +61,7 @@ fn run_cli(args: &[&str], out: &Path) {
         .arg(out)
         .output()
         .unwrap();
-    assert!(
-        o.status.success(),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
 
 /// Rewrites a run log with deterministic measurements: image `i` took
@@ -146,8 +142,14 @@ fn sharded_runs_evaluate_exactly_as_the_unsharded_run() {
     let o = eval(&[&shards[2], &shards[0], &shards[1]], &b);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     for f in OUTPUTS {
-        let (x, y) = (std::fs::read(a.join(f)).unwrap(), std::fs::read(b.join(f)).unwrap());
-        assert!(x == y, "{f} differs between sharded and unsharded evaluation");
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(
+            x == y,
+            "{f} differs between sharded and unsharded evaluation"
+        );
     }
     let summary = std::fs::read_to_string(a.join("summary.json")).unwrap();
     assert!(summary.contains("\"found\": 13"), "{summary:.400}");
@@ -170,7 +172,15 @@ fn bad_shard_values_are_rejected() {
     for bad in ["3/3", "1/0", "a/2", "2"] {
         let out = tmp.path().join("x.mcap");
         let o = coppertag()
-            .args(["run", "--quiet", "--detector", "coppertag", "--shard", bad, "--dataset"])
+            .args([
+                "run",
+                "--quiet",
+                "--detector",
+                "coppertag",
+                "--shard",
+                bad,
+                "--dataset",
+            ])
             .arg(dataset())
             .arg("-o")
             .arg(&out)
@@ -221,7 +231,11 @@ fn wild_evaluation_and_report_section() {
     assert!(!factors.contains(&"jitter_group"));
     let csv = std::fs::read_to_string(results.join("wild-systems.csv")).unwrap();
     assert!(csv.starts_with("system,images,markers,correct,rough,missed,"));
-    assert!(csv.lines().nth(1).unwrap().starts_with("coppertag,5,5,5,0,0,"));
+    assert!(csv
+        .lines()
+        .nth(1)
+        .unwrap()
+        .starts_with("coppertag,5,5,5,0,0,"));
 
     let reports = t.join("reports");
     let o = coppertag()

@@ -76,11 +76,13 @@ pub fn run(args: &RunArgs) -> Result<()> {
     };
     let dataset = Dataset::open(&args.dataset)
         .with_context(|| format!("cannot open dataset {}", args.dataset.display()))?;
-    let total = args
-        .shard
-        .map_or(dataset.images.len(), |s| {
-            dataset.images.iter().filter(|(i, _)| s.contains(*i)).count()
-        });
+    let total = args.shard.map_or(dataset.images.len(), |s| {
+        dataset
+            .images
+            .iter()
+            .filter(|(i, _)| s.contains(*i))
+            .count()
+    });
     let pb = bar(
         total,
         &format!("{} {}", spec.name(), dataset.name),
