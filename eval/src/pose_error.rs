@@ -222,8 +222,8 @@ mod tests {
             assert!(e.translation_mm < 1e-3, "{e:?}");
             assert!(e.rotation_deg < 1e-6f64.to_degrees(), "{e:?}");
             assert!(!e.flipped, "{e:?}");
-            for i in 0..3 {
-                assert!((e.translation[i] - t[i]).abs() < 1e-6);
+            for (got, want) in e.translation.iter().zip(t) {
+                assert!((got - want).abs() < 1e-6, "{got} vs {want}");
             }
         }
     }

@@ -82,7 +82,7 @@ fn open_one(path: &Path, dataset: Option<&Path>) -> Result<(RunLog, Dataset)> {
 /// errors, one per bad run or incomplete set of shards.
 pub fn load_all(runs: &[PathBuf], dataset: Option<&Path>) -> (Vec<Loaded>, Vec<String>) {
     enum Item {
-        Whole(Loaded),
+        Whole(Box<Loaded>),
         Shards(String),
     }
     let mut items = Vec::new();
@@ -93,11 +93,11 @@ pub fn load_all(runs: &[PathBuf], dataset: Option<&Path>) -> (Vec<Loaded>, Vec<S
             Err(e) => errors.push(format!("{e:#}")),
             Ok((run, ds)) if run.info.shard.is_empty() => {
                 let dirs = vec![ds.dir.clone()];
-                items.push(Item::Whole(Loaded {
+                items.push(Item::Whole(Box::new(Loaded {
                     run,
                     dataset: ds,
                     dirs,
-                }));
+                })));
             }
             Ok((run, ds)) => {
                 let count = run.info.shard.split_once('/').map_or("", |s| s.1);
@@ -113,7 +113,7 @@ pub fn load_all(runs: &[PathBuf], dataset: Option<&Path>) -> (Vec<Loaded>, Vec<S
     let mut out = Vec::new();
     for item in items {
         match item {
-            Item::Whole(l) => out.push(l),
+            Item::Whole(l) => out.push(*l),
             Item::Shards(key) => {
                 let (logs, parts): (Vec<RunLog>, Vec<Dataset>) =
                     groups.remove(&key).unwrap_or_default().into_iter().unzip();
