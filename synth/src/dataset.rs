@@ -24,6 +24,7 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use serde_json::json;
 
+use crate::camera::Camera;
 use crate::coverage::Rasterizer;
 use crate::error::{Result, SynthError};
 use crate::foxglove::McapWriter;
@@ -204,6 +205,8 @@ struct Rendered {
     png: Vec<u8>,
     markers: Vec<MarkerTruth>,
     draws: Vec<Draw>,
+    /// The image's camera (sampled specs may draw its distortion).
+    camera: Camera,
     times: [Duration; 3],
 }
 
@@ -222,6 +225,7 @@ fn render_one(
         None => (spec.scene(index)?, Vec::new()),
     };
     let out = scene.render(raster)?;
+    let camera = scene.rendering.camera;
     let t1 = Instant::now();
     let png = encode_png(&out.image)?;
     let t2 = Instant::now();
@@ -233,6 +237,7 @@ fn render_one(
         png,
         markers: out.markers,
         draws,
+        camera,
         times: [t1 - t0, t2 - t1, t3 - t2],
     })
 }
@@ -488,7 +493,7 @@ pub fn generate_shard(
                     r.index,
                     &image_name(r.index),
                     &r.png,
-                    &spec.rendering.camera,
+                    &r.camera,
                     sweep,
                     &r.markers,
                 )?;

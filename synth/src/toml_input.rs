@@ -98,10 +98,10 @@ impl<'a> KeyLocator<'a> {
             let next = match (*step, table, value) {
                 (Step::Key(k), Some(t), _) => t
                     .iter()
-                    .find(|(key, _)| key.get_ref().as_ref() == k)
+                    .find(|(key, _)| &**key.get_ref() == k)
                     .map(|(key, v)| (key.span(), v)),
                 (Step::Index(i), _, Some(v)) => match v.get_ref() {
-                    DeValue::Array(a) => a.iter().nth(i).map(|e| (e.span(), e)),
+                    DeValue::Array(a) => a.get(i).map(|e| (e.span(), e)),
                     _ => None,
                 },
                 _ => None,

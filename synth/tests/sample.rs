@@ -217,7 +217,10 @@ fn repeats_change_only_the_sensor_noise() {
             .map(|d| d[3].clone())
             .unwrap()
     };
-    assert_eq!((group(0), group(2), group(3), group(5)), ("0".into(), "0".into(), "1".into(), "1".into()));
+    assert_eq!(
+        [group(0), group(2), group(3), group(5)],
+        ["0", "0", "1", "1"].map(String::from)
+    );
     // Same truth (poses, corners) within a group, different pixels.
     let (h, truth) = csv_rows(&out.join("truth.csv"));
     let skip = [h.iter().position(|x| x == "image").unwrap(), h.iter().position(|x| x == "index").unwrap()];
@@ -225,7 +228,7 @@ fn repeats_change_only_the_sensor_noise() {
         r.iter().enumerate().filter(|(i, _)| !skip.contains(i)).map(|(_, v)| v.clone()).collect()
     };
     let rows_of = |i: usize| -> Vec<Vec<String>> {
-        truth.iter().filter(|r| r[skip[1]] == i.to_string()).map(strip).collect()
+        truth.iter().filter(|r| r[skip[1]] == i.to_string()).map(&strip).collect()
     };
     assert_eq!(rows_of(0), rows_of(1));
     assert_eq!(rows_of(3), rows_of(5));

@@ -556,7 +556,7 @@ impl DatasetSpec {
                 IdChoice::Any => t.ids.0 + pick(u(M_ID), (t.ids.1 - t.ids.0 + 1) as usize) as u64,
                 IdChoice::List(ids) => ids[pick(u(M_ID), ids.len())],
             };
-            let model = MarkerModel::new(t.system, Some(&t.family), id)?;
+            let model = MarkerModel::new(t.system, Some(t.family.as_str()), id)?;
             let size_m = s.square_m * 2.0 * model.half_extent;
             let occlusion = match &s.occluder_kind {
                 None => None,
