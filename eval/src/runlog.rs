@@ -27,7 +27,6 @@ use crate::error::{EvalError, Result};
 use crate::protocol::ImageResult;
 use crate::runner::{IndexedResult, RunInfo, RunOutput, RunResources};
 
-
 /// One `/detections` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DetectionsMessage {

@@ -100,8 +100,14 @@ impl Shard {
         let (k, n) = s
             .split_once('/')
             .ok_or_else(|| format!("'{s}' is not K/N"))?;
-        let k: usize = k.trim().parse().map_err(|_| format!("'{s}': K is not a whole number"))?;
-        let n: usize = n.trim().parse().map_err(|_| format!("'{s}': N is not a whole number"))?;
+        let k: usize = k
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': K is not a whole number"))?;
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': N is not a whole number"))?;
         if n == 0 || k >= n {
             return Err(format!("'{s}': need 0 <= K < N"));
         }

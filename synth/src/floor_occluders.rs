@@ -166,9 +166,7 @@ fn shape(scenario: Scenario, target: f64, rng: &mut SynthRng) -> Option<Vec<Vec<
                 .collect();
             fit(target, 0.6, |w| {
                 let h = w / 2.0;
-                let left = pts
-                    .iter()
-                    .map(|(p, n)| [p[0] + h * n[0], p[1] + h * n[1]]);
+                let left = pts.iter().map(|(p, n)| [p[0] + h * n[0], p[1] + h * n[1]]);
                 let right = pts
                     .iter()
                     .rev()
@@ -282,7 +280,11 @@ mod tests {
             for &c in &[0.03, 0.1, 0.25, 0.4] {
                 let o = generate(kind, c, Style::Solid.appearance(), "t".into(), &mut rng)
                     .unwrap_or_else(|e| panic!("{kind:?} {c}: {e}"));
-                assert!((o.coverage() - c).abs() < 1e-5, "{kind:?} {c}: {}", o.coverage());
+                assert!(
+                    (o.coverage() - c).abs() < 1e-5,
+                    "{kind:?} {c}: {}",
+                    o.coverage()
+                );
             }
         }
     }

@@ -255,7 +255,9 @@ impl Scene {
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut canvas = Canvas::new(w, h, 0.0);
         let mut bg_rng = image_rng(self.seed, self.index, Stream::Background);
-        self.rendering.background.paint(&mut canvas, raster, &mut bg_rng);
+        self.rendering
+            .background
+            .paint(&mut canvas, raster, &mut bg_rng);
         let mut depth = cam
             .defocus
             .map(|_| vec![self.rendering.background.distance_m as f32; w * h]);

@@ -97,8 +97,12 @@ fn csv_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
 #[test]
 fn sampled_datasets_are_the_same_on_any_thread_count() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec =
-        DatasetSpec::load(&write(tmp.path(), "s.toml", &sampled("coppertag", "ct14", ""))).unwrap();
+    let spec = DatasetSpec::load(&write(
+        tmp.path(),
+        "s.toml",
+        &sampled("coppertag", "ct14", ""),
+    ))
+    .unwrap();
     assert_eq!(spec.image_count(), 8);
     let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
     run(1, &spec, &a, None);
@@ -114,8 +118,12 @@ fn sampled_datasets_are_the_same_on_any_thread_count() {
 #[test]
 fn draws_are_recorded_per_image_and_marker() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec =
-        DatasetSpec::load(&write(tmp.path(), "s.toml", &sampled("coppertag", "ct14", ""))).unwrap();
+    let spec = DatasetSpec::load(&write(
+        tmp.path(),
+        "s.toml",
+        &sampled("coppertag", "ct14", ""),
+    ))
+    .unwrap();
     let out = tmp.path().join("ds");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     let (header, draws) = csv_rows(&out.join("draws.csv"));
@@ -135,7 +143,17 @@ fn draws_are_recorded_per_image_and_marker() {
     for t in &truth {
         let (i, m) = (t[col("index")].clone(), t[col("marker_index")].clone());
         *markers_in.entry(i.parse().unwrap()).or_default() += 1;
-        for f in ["side_px", "distance_m", "tilt_x_deg", "tilt_y_deg", "roll_deg", "pos_x", "pos_y", "occluder_kind", "occluder_coverage"] {
+        for f in [
+            "side_px",
+            "distance_m",
+            "tilt_x_deg",
+            "tilt_y_deg",
+            "roll_deg",
+            "pos_x",
+            "pos_y",
+            "occluder_kind",
+            "occluder_coverage",
+        ] {
             let hit: Vec<&Vec<String>> = draws
                 .iter()
                 .filter(|d| d[0] == i && d[1] == m && d[2] == f)
@@ -159,7 +177,10 @@ fn draws_are_recorded_per_image_and_marker() {
             .filter(|d| d[0] == i.to_string() && d[1].is_empty() && d[2] == "markers_per_frame")
             .collect();
         assert_eq!(n.len(), 1);
-        assert_eq!(n[0][3], markers_in.get(&i).copied().unwrap_or(0).to_string());
+        assert_eq!(
+            n[0][3],
+            markers_in.get(&i).copied().unwrap_or(0).to_string()
+        );
     }
     // Mixed counts: the 8 scenes do not all have one marker.
     assert!(markers_in.values().any(|&n| n > 1), "{markers_in:?}");
@@ -169,10 +190,17 @@ fn draws_are_recorded_per_image_and_marker() {
 fn every_system_sees_the_same_scenes() {
     let tmp = tempfile::tempdir().unwrap();
     let mut trees = Vec::new();
-    for (sys, fam) in [("coppertag", "ct14"), ("apriltag3", "tag36h11"), ("stag", "stag_hd21")] {
-        let spec =
-            DatasetSpec::load(&write(tmp.path(), &format!("{sys}.toml"), &sampled(sys, fam, "")))
-                .unwrap();
+    for (sys, fam) in [
+        ("coppertag", "ct14"),
+        ("apriltag3", "tag36h11"),
+        ("stag", "stag_hd21"),
+    ] {
+        let spec = DatasetSpec::load(&write(
+            tmp.path(),
+            &format!("{sys}.toml"),
+            &sampled(sys, fam, ""),
+        ))
+        .unwrap();
         let out = tmp.path().join(sys);
         generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
         trees.push(out);
@@ -181,16 +209,28 @@ fn every_system_sees_the_same_scenes() {
         .iter()
         .map(|d| std::fs::read(d.join("draws.csv")).unwrap())
         .collect();
-    assert!(draws.iter().all(|d| d == &draws[0]), "draws differ between systems");
+    assert!(
+        draws.iter().all(|d| d == &draws[0]),
+        "draws differ between systems"
+    );
     // The same poses (the marker square is the same size for all).
     let poses: Vec<Vec<Vec<String>>> = trees
         .iter()
         .map(|d| {
             let (h, rows) = csv_rows(&d.join("truth.csv"));
-            let cols: Vec<usize> = ["index", "marker_index", "tx", "ty", "tz", "rvec_x", "rvec_y", "rvec_z"]
-                .iter()
-                .map(|n| h.iter().position(|x| x == n).unwrap())
-                .collect();
+            let cols: Vec<usize> = [
+                "index",
+                "marker_index",
+                "tx",
+                "ty",
+                "tz",
+                "rvec_x",
+                "rvec_y",
+                "rvec_z",
+            ]
+            .iter()
+            .map(|n| h.iter().position(|x| x == n).unwrap())
+            .collect();
             rows.iter()
                 .map(|r| cols.iter().map(|&c| r[c].clone()).collect())
                 .collect()
@@ -223,12 +263,23 @@ fn repeats_change_only_the_sensor_noise() {
     );
     // Same truth (poses, corners) within a group, different pixels.
     let (h, truth) = csv_rows(&out.join("truth.csv"));
-    let skip = [h.iter().position(|x| x == "image").unwrap(), h.iter().position(|x| x == "index").unwrap()];
+    let skip = [
+        h.iter().position(|x| x == "image").unwrap(),
+        h.iter().position(|x| x == "index").unwrap(),
+    ];
     let strip = |r: &Vec<String>| -> Vec<String> {
-        r.iter().enumerate().filter(|(i, _)| !skip.contains(i)).map(|(_, v)| v.clone()).collect()
+        r.iter()
+            .enumerate()
+            .filter(|(i, _)| !skip.contains(i))
+            .map(|(_, v)| v.clone())
+            .collect()
     };
     let rows_of = |i: usize| -> Vec<Vec<String>> {
-        truth.iter().filter(|r| r[skip[1]] == i.to_string()).map(&strip).collect()
+        truth
+            .iter()
+            .filter(|r| r[skip[1]] == i.to_string())
+            .map(&strip)
+            .collect()
     };
     assert_eq!(rows_of(0), rows_of(1));
     assert_eq!(rows_of(3), rows_of(5));
@@ -240,8 +291,12 @@ fn repeats_change_only_the_sensor_noise() {
 #[test]
 fn shards_together_are_the_whole_dataset_byte_for_byte() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec =
-        DatasetSpec::load(&write(tmp.path(), "s.toml", &sampled("aruco3", "aruco_mip_36h12", ""))).unwrap();
+    let spec = DatasetSpec::load(&write(
+        tmp.path(),
+        "s.toml",
+        &sampled("aruco3", "aruco_mip_36h12", ""),
+    ))
+    .unwrap();
     let whole = tmp.path().join("whole");
     run(2, &spec, &whole, None);
     let whole_tree = read_tree(&whole);
@@ -273,7 +328,13 @@ fn shards_together_are_the_whole_dataset_byte_for_byte() {
             assert!(images.get(name) == Some(bytes), "{name} differs");
         }
     }
-    assert_eq!(images.len(), whole_tree.keys().filter(|k| k.starts_with("images/")).count());
+    assert_eq!(
+        images.len(),
+        whole_tree
+            .keys()
+            .filter(|k| k.starts_with("images/"))
+            .count()
+    );
     // Rows merged by image index (stable: rows of one image keep their
     // order) equal the whole dataset's.
     let idx = |r: &Vec<String>, c: usize| r[c].parse::<usize>().unwrap();
@@ -305,5 +366,11 @@ clutter_density = [50, 1500]
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     assert!(csv_rows(&out.join("truth.csv")).1.is_empty());
     let (_, draws) = csv_rows(&out.join("draws.csv"));
-    assert_eq!(draws.iter().filter(|d| d[2] == "markers_per_frame" && d[3] == "0").count(), 4);
+    assert_eq!(
+        draws
+            .iter()
+            .filter(|d| d[2] == "markers_per_frame" && d[3] == "0")
+            .count(),
+        4
+    );
 }

@@ -237,7 +237,8 @@ fn centre_range(
 /// The rotation of tilts and roll (degrees): about the marker's x, then
 /// y, then z axis.
 fn rotation(tx: f64, ty: f64, roll: f64) -> Rotation3<f64> {
-    axis_rotation(0, tx.to_radians()) * axis_rotation(1, ty.to_radians())
+    axis_rotation(0, tx.to_radians())
+        * axis_rotation(1, ty.to_radians())
         * axis_rotation(2, roll.to_radians())
 }
 
@@ -295,11 +296,7 @@ impl DatasetSpec {
             Some((seed, h)) if *seed == self.seed => Some(self.draw_scene(sample, h, index)),
             // The seed was changed through the public field: scramble anew
             // (`set_seed` avoids doing it per image).
-            _ => Some(self.draw_scene(
-                sample,
-                &ScrambledHalton::new(DIMS, self.seed),
-                index,
-            )),
+            _ => Some(self.draw_scene(sample, &ScrambledHalton::new(DIMS, self.seed), index)),
         }
     }
 
@@ -317,10 +314,7 @@ impl DatasetSpec {
         };
         let mut rng = image_rng(self.seed, scene_no as u64, Stream::Sample);
         let mut r = self.rendering.clone();
-        let (w, h) = (
-            f64::from(r.camera.width),
-            f64::from(r.camera.height),
-        );
+        let (w, h) = (f64::from(r.camera.width), f64::from(r.camera.height));
 
         if s.repeats > 1 {
             d.num(None, "jitter_group", scene_no as f64);
@@ -361,9 +355,10 @@ impl DatasetSpec {
                         angle: rng.random_range(0.0..2.0 * PI),
                     },
                     BackgroundChoice::Clutter => {
-                        let density = s.clutter_density.as_ref().map_or(200.0, |f| {
-                            f.at(d.u(D_CLUTTER))
-                        });
+                        let density = s
+                            .clutter_density
+                            .as_ref()
+                            .map_or(200.0, |f| f.at(d.u(D_CLUTTER)));
                         d.num(None, "clutter_density", density);
                         BackgroundKind::Clutter {
                             base: rng.random_range(lo..hi),
@@ -381,8 +376,7 @@ impl DatasetSpec {
                         // circle at the smallest scale.
                         let half_diag = w.hypot(h) / 2.0;
                         let min_scale = half_diag / (sw.min(sh) / 2.0 - 1.0);
-                        let scale = min_scale
-                            * rng.random_range(1.0..PHOTO_ZOOM_MAX);
+                        let scale = min_scale * rng.random_range(1.0..PHOTO_ZOOM_MAX);
                         let angle = rng.random_range(0.0..2.0 * PI);
                         let reach = half_diag / scale;
                         let centre = [
@@ -461,13 +455,10 @@ impl DatasetSpec {
         }
 
         // Markers.
-        let wanted = s
-            .markers_per_frame
-            .as_ref()
-            .map_or(1, |f| {
-                f.at_int(d.u(D_MARKERS))
-                    .clamp(0, MAX_MARKERS_PER_FRAME as i64) as usize
-            });
+        let wanted = s.markers_per_frame.as_ref().map_or(1, |f| {
+            f.at_int(d.u(D_MARKERS))
+                .clamp(0, MAX_MARKERS_PER_FRAME as i64) as usize
+        });
         let mut placed: Vec<(Placement, usize)> = Vec::new();
         for slot in 0..wanted {
             let base = IMAGE_DIMS + slot * MARKER_DIMS;
@@ -494,7 +485,11 @@ impl DatasetSpec {
                 s.pos_y.as_ref().map_or(0.5, |f| f.at(u(M_POS_Y))),
             );
             let mut found = None;
-            let attempts = if slot == 0 { CENTRE_STEPS + 1 } else { PLACEMENT_ATTEMPTS };
+            let attempts = if slot == 0 {
+                CENTRE_STEPS + 1
+            } else {
+                PLACEMENT_ATTEMPTS
+            };
             for attempt in 0..attempts {
                 if attempt > 0 {
                     if slot == 0 {
@@ -512,7 +507,8 @@ impl DatasetSpec {
                     continue;
                 };
                 let clear = placed.iter().all(|(q, _)| {
-                    let dist = (p.centre_px[0] - q.centre_px[0]).hypot(p.centre_px[1] - q.centre_px[1]);
+                    let dist =
+                        (p.centre_px[0] - q.centre_px[0]).hypot(p.centre_px[1] - q.centre_px[1]);
                     dist > p.radius_px + q.radius_px + GAP_PX
                 });
                 if clear {
@@ -650,11 +646,7 @@ impl DatasetSpec {
         }
         let mut draws = d.draws;
         // Image-level rows first, then by marker; by factor within each.
-        draws.sort_by(|a, b| {
-            a.marker
-                .cmp(&b.marker)
-                .then_with(|| a.factor.cmp(b.factor))
-        });
+        draws.sort_by(|a, b| a.marker.cmp(&b.marker).then_with(|| a.factor.cmp(b.factor)));
         Ok(SampledScene {
             scene: Scene {
                 rendering: r,

@@ -132,9 +132,12 @@ impl DatasetSpec {
                 Some(sample::sample(&loc, sf, &rendering, &base_dir)?)
             }
         };
-        let halton = sample
-            .as_ref()
-            .map(|_| (file.seed, Arc::new(ScrambledHalton::new(draw::DIMS, file.seed))));
+        let halton = sample.as_ref().map(|_| {
+            (
+                file.seed,
+                Arc::new(ScrambledHalton::new(draw::DIMS, file.seed)),
+            )
+        });
         if file.images == 0 || file.images > MAX_REPEAT {
             return Err(loc.err(
                 steps!["images"],
@@ -227,10 +230,7 @@ impl DatasetSpec {
         });
         // Only sampled specs have the key, so older datasets keep their bytes.
         if let (Some(s), Some(obj)) = (&self.sample, json.as_object_mut()) {
-            obj.insert(
-                "sample".into(),
-                serde_json::to_value(s).unwrap_or_default(),
-            );
+            obj.insert("sample".into(), serde_json::to_value(s).unwrap_or_default());
         }
         json
     }

@@ -277,7 +277,10 @@ impl Reader<'_, '_> {
         max: f64,
     ) -> Result<Option<Factor>> {
         let Some(v) = v else { return Ok(None) };
-        let err = |m: String| self.loc.err(steps!["sample", key], format!("sample.{key}: {m}"));
+        let err = |m: String| {
+            self.loc
+                .err(steps!["sample", key], format!("sample.{key}: {m}"))
+        };
         let num = |x: &toml::Value| match x {
             toml::Value::Float(f) => Some(*f),
             toml::Value::Integer(i) => Some(*i as f64),
@@ -293,7 +296,12 @@ impl Reader<'_, '_> {
                         }
                         Factor::Range(*lo, *hi)
                     }
-                    _ => return Err(err("a range is [lo, hi] (two numbers); a list is { values = [...] }".into())),
+                    _ => {
+                        return Err(err(
+                            "a range is [lo, hi] (two numbers); a list is { values = [...] }"
+                                .into(),
+                        ))
+                    }
                 }
             }
             toml::Value::Table(t) => {
@@ -315,7 +323,9 @@ impl Reader<'_, '_> {
         };
         let (lo, hi) = f.bounds();
         if !(lo.is_finite() && hi.is_finite() && lo >= min && hi <= max) {
-            return Err(err(format!("values must lie in {min}..={max} (got {lo}..={hi})")));
+            return Err(err(format!(
+                "values must lie in {min}..={max} (got {lo}..={hi})"
+            )));
         }
         Ok(Some(f))
     }
@@ -324,10 +334,9 @@ impl Reader<'_, '_> {
         let Some(v) = v else { return Ok(None) };
         let list: Option<Vec<String>> = match v {
             toml::Value::String(s) => Some(vec![s.clone()]),
-            toml::Value::Array(a) if !a.is_empty() => a
-                .iter()
-                .map(|x| x.as_str().map(str::to_string))
-                .collect(),
+            toml::Value::Array(a) if !a.is_empty() => {
+                a.iter().map(|x| x.as_str().map(str::to_string)).collect()
+            }
             _ => None,
         };
         list.map(Some).ok_or_else(|| {
@@ -390,7 +399,10 @@ pub(super) fn sample(
     let r = Reader { loc };
     let at = |key: &str, m: String| loc.err(steps!["sample", key], format!("sample.{key}: {m}"));
     if sf.count == 0 || sf.count > MAX_SCENES {
-        return Err(at("count", format!("{} is outside 1..={MAX_SCENES}", sf.count)));
+        return Err(at(
+            "count",
+            format!("{} is outside 1..={MAX_SCENES}", sf.count),
+        ));
     }
     if sf.repeats == 0 || sf.repeats > MAX_REPEATS {
         return Err(at(
@@ -411,9 +423,14 @@ pub(super) fn sample(
         MAX_MARKERS_PER_FRAME as f64,
     )?;
     // Tag-free frames (false-positive sets) need no marker type.
-    let tag_free = markers_per_frame.as_ref().is_some_and(|f| f.bounds().1 < 0.5);
+    let tag_free = markers_per_frame
+        .as_ref()
+        .is_some_and(|f| f.bounds().1 < 0.5);
     if sf.markers.is_empty() && !tag_free {
-        return Err(at("markers", "give at least one marker type (or markers_per_frame = 0 for tag-free frames)".into()));
+        return Err(at(
+            "markers",
+            "give at least one marker type (or markers_per_frame = 0 for tag-free frames)".into(),
+        ));
     }
     let mut markers = Vec::new();
     for (i, m) in sf.markers.iter().enumerate() {
@@ -447,10 +464,7 @@ pub(super) fn sample(
                 if let Some(bad) = ids.iter().find(|&&i| i < t.ids.0 || i > t.ids.1) {
                     return Err(at(
                         "id",
-                        format!(
-                            "{} has ids {}..={}, not {bad}",
-                            t.family, t.ids.0, t.ids.1
-                        ),
+                        format!("{} has ids {}..={}, not {bad}", t.family, t.ids.0, t.ids.1),
                     ));
                 }
             }
@@ -459,10 +473,7 @@ pub(super) fn sample(
         Some(_) => return Err(at("id", "give \"any\" or a list of ids".into())),
     };
     let size = match (&sf.side_px, &sf.distance_m) {
-        (Some(v), None) => Size::SidePx(
-            r.factor("side_px", Some(v), 4.0, 4000.0)?
-                .expect("given"),
-        ),
+        (Some(v), None) => Size::SidePx(r.factor("side_px", Some(v), 4.0, 4000.0)?.expect("given")),
         (None, Some(v)) => Size::DistanceM(
             r.factor("distance_m", Some(v), 0.05, 1000.0)?
                 .expect("given"),
@@ -492,10 +503,7 @@ pub(super) fn sample(
         .as_ref()
         .is_some_and(|b| b.contains(&BackgroundChoice::Image));
     if wants_images && sf.background_images.is_empty() {
-        return Err(at(
-            "background",
-            "\"image\" needs background_images".into(),
-        ));
+        return Err(at("background", "\"image\" needs background_images".into()));
     }
     let mut background_sources = Vec::new();
     for (i, p) in sf.background_images.iter().enumerate() {
@@ -557,15 +565,30 @@ pub(super) fn sample(
         markers,
         markers_per_frame,
         size,
-        tilt_x_deg: r.factor("tilt_x_deg", sf.tilt_x_deg.as_ref(), -MAX_TILT_DEG, MAX_TILT_DEG)?,
-        tilt_y_deg: r.factor("tilt_y_deg", sf.tilt_y_deg.as_ref(), -MAX_TILT_DEG, MAX_TILT_DEG)?,
+        tilt_x_deg: r.factor(
+            "tilt_x_deg",
+            sf.tilt_x_deg.as_ref(),
+            -MAX_TILT_DEG,
+            MAX_TILT_DEG,
+        )?,
+        tilt_y_deg: r.factor(
+            "tilt_y_deg",
+            sf.tilt_y_deg.as_ref(),
+            -MAX_TILT_DEG,
+            MAX_TILT_DEG,
+        )?,
         roll_deg: r.factor("roll_deg", sf.roll_deg.as_ref(), -360.0, 360.0)?,
         pos_x: r.factor("pos_x", sf.pos_x.as_ref(), 0.0, 1.0)?,
         pos_y: r.factor("pos_y", sf.pos_y.as_ref(), 0.0, 1.0)?,
         id,
         contrast: r.factor("contrast", sf.contrast.as_ref(), 0.01, base.print.paper)?,
         background,
-        clutter_density: r.factor("clutter_density", sf.clutter_density.as_ref(), 0.0, 20_000.0)?,
+        clutter_density: r.factor(
+            "clutter_density",
+            sf.clutter_density.as_ref(),
+            0.0,
+            20_000.0,
+        )?,
         background_images: sf.background_images.clone(),
         background_sources,
         gradient: r.factor("gradient", sf.gradient.as_ref(), 0.0, 1.0)?,
