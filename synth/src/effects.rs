@@ -23,6 +23,19 @@ pub struct Shadow {
     pub softness_px: f64,
 }
 
+/// A specular glare: light reflected straight into the lens by a glossy
+/// print or laminate, a Gaussian blob added on top of the diffuse image.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Glare {
+    /// Centre, pixel-centre coordinates.
+    pub centre: [f64; 2],
+    /// Gaussian sigma, pixels.
+    pub sigma_px: f64,
+    /// Added value at the centre (reflectance units: 1 = paper white at
+    /// gain 1).
+    pub peak: f64,
+}
+
 /// Illumination over the image.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Lighting {
@@ -35,6 +48,10 @@ pub struct Lighting {
     pub vignetting: f64,
     /// Shadows.
     pub shadows: Vec<Shadow>,
+    /// Specular glares (sampled specs only; not written when empty, so
+    /// older datasets keep their bytes).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub glares: Vec<Glare>,
 }
 
 impl Default for Lighting {
@@ -44,6 +61,7 @@ impl Default for Lighting {
             gradient: [0.0; 2],
             vignetting: 0.0,
             shadows: Vec::new(),
+            glares: Vec::new(),
         }
     }
 }
@@ -76,6 +94,11 @@ pub struct Effects {
     /// JPEG compression round trip at this quality (1..=100); the stored
     /// file is still a lossless PNG of the decoded JPEG.
     pub jpeg_quality: Option<u8>,
+    /// Defocus as one Gaussian blur over the whole image, sigma in pixels
+    /// (sampled specs; the depth-dependent lens defocus is
+    /// [`crate::camera::Defocus`]). Not written when absent.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blur_sigma_px: Option<f64>,
 }
 
 /// Normalised Gaussian kernel of radius `ceil(3 sigma)`.
@@ -136,6 +159,7 @@ impl Lighting {
             && self.gradient == [0.0, 0.0]
             && self.vignetting == 0.0
             && self.shadows.is_empty()
+            && self.glares.is_empty()
     }
 
     /// Multiplies the canvas by the illumination field.
@@ -206,6 +230,27 @@ impl Lighting {
                 let e = (gain * (ramp_y + rx) * (vig_y - vx)).max(0.0);
                 *p *= e * l;
             }
+        }
+        for g in &self.glares {
+            add_glare(canvas, g);
+        }
+    }
+}
+
+/// Adds a glare blob within `4 sigma` of its centre.
+fn add_glare(canvas: &mut Canvas, g: &Glare) {
+    let (w, h) = (canvas.width, canvas.height);
+    let reach = 4.0 * g.sigma_px;
+    let x0 = (g.centre[0] - reach).floor().clamp(0.0, w as f64) as usize;
+    let x1 = (g.centre[0] + reach).ceil().clamp(0.0, w as f64) as usize;
+    let y0 = (g.centre[1] - reach).floor().clamp(0.0, h as f64) as usize;
+    let y1 = (g.centre[1] + reach).ceil().clamp(0.0, h as f64) as usize;
+    let k = -1.0 / (2.0 * g.sigma_px * g.sigma_px);
+    for y in y0..y1 {
+        let dy = y as f64 - g.centre[1];
+        for x in x0..x1 {
+            let dx = x as f64 - g.centre[0];
+            canvas.data[y * w + x] += (g.peak * ((dx * dx + dy * dy) * k).exp()) as f32;
         }
     }
 }

@@ -58,9 +58,11 @@ pub struct PlacedMarker {
     pub occlusion: Option<Arc<Occlusion>>,
 }
 
-/// Everything needed to render one image.
+/// The settings every image of a dataset shares (unless a sampled spec
+/// draws them per image): camera, print, background, lighting, sensor and
+/// effects.
 #[derive(Debug, Clone)]
-pub struct Scene {
+pub struct Rendering {
     /// Camera.
     pub camera: Camera,
     /// Print reflectances.
@@ -73,12 +75,24 @@ pub struct Scene {
     pub sensor: Sensor,
     /// Blur and compression.
     pub effects: Effects,
+}
+
+/// Everything needed to render one image.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Camera, print, background, lighting, sensor and effects.
+    pub rendering: Rendering,
     /// Markers.
     pub markers: Vec<PlacedMarker>,
     /// Dataset seed.
     pub seed: u64,
-    /// Image index in the dataset (with the seed, picks the random streams).
+    /// Scene number (with the seed, picks the random streams of the
+    /// background, occluders and textures): the image index, except in
+    /// sampled specs with `repeats`, where the repeats of one scene share
+    /// it.
     pub index: u64,
+    /// Picks the sensor-noise stream: the image index.
+    pub noise_index: u64,
 }
 
 /// A marker seen through the camera: maps marker units to pixels.
@@ -237,14 +251,16 @@ fn centre_depth(m: &PlacedMarker) -> f64 {
 impl Scene {
     /// Renders the image and its ground truth. `raster` is scratch memory.
     pub fn render(&self, raster: &mut Rasterizer) -> Result<Rendered> {
-        let cam = &self.camera;
+        let cam = &self.rendering.camera;
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut canvas = Canvas::new(w, h, 0.0);
         let mut bg_rng = image_rng(self.seed, self.index, Stream::Background);
-        self.background.paint(&mut canvas, raster, &mut bg_rng);
+        self.rendering
+            .background
+            .paint(&mut canvas, raster, &mut bg_rng);
         let mut depth = cam
             .defocus
-            .map(|_| vec![self.background.distance_m as f32; w * h]);
+            .map(|_| vec![self.rendering.background.distance_m as f32; w * h]);
 
         let mut order: Vec<usize> = (0..self.markers.len()).collect();
         order.sort_by(|&a, &b| {
@@ -256,8 +272,8 @@ impl Scene {
             let unit = m.model.metres_per_unit(m.size_m);
             let view = MarkerView::new(cam, m.pose, unit, m.model.half_extent);
             let colour = |p: Paint| match p {
-                Paint::Black => self.print.ink as f32,
-                Paint::White => self.print.paper as f32,
+                Paint::Black => self.rendering.print.ink as f32,
+                Paint::White => self.rendering.print.paper as f32,
             };
             for el in &m.model.elements {
                 let (polys, rule) = element_polygons(el, &view).ok_or_else(|| {
@@ -331,7 +347,7 @@ impl Scene {
             truths[mi] = Some(self.truth(mi, &view, occ_truth)?);
         }
 
-        self.lighting.apply(&mut canvas, raster);
+        self.rendering.lighting.apply(&mut canvas, raster);
         if let Some(depth) = &depth {
             let sigma: Vec<f32> = depth
                 .iter()
@@ -339,12 +355,15 @@ impl Scene {
                 .collect();
             canvas = effects::variable_blur(&canvas, &sigma);
         }
-        if let Some(mb) = self.effects.motion_blur {
+        if let Some(sigma) = self.rendering.effects.blur_sigma_px {
+            canvas = effects::gaussian_blur(&canvas, sigma);
+        }
+        if let Some(mb) = self.rendering.effects.motion_blur {
             canvas = effects::motion_blur(&canvas, mb);
         }
-        let mut noise_rng = image_rng(self.seed, self.index, Stream::Noise);
-        let mut image = effects::quantise(&canvas, &self.sensor, &mut noise_rng);
-        if let Some(q) = self.effects.jpeg_quality {
+        let mut noise_rng = image_rng(self.seed, self.noise_index, Stream::Noise);
+        let mut image = effects::quantise(&canvas, &self.rendering.sensor, &mut noise_rng);
+        if let Some(q) = self.rendering.effects.jpeg_quality {
             image = effects::jpeg_round_trip(&image, q)?;
         }
         Ok(Rendered {
@@ -372,7 +391,7 @@ impl Scene {
                 ))
             })?;
         }
-        let corner_in_image = corners.map(|c| self.camera.contains(c));
+        let corner_in_image = corners.map(|c| self.rendering.camera.contains(c));
         let hidden = m
             .occlusion
             .as_ref()

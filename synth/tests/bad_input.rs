@@ -206,3 +206,266 @@ fn a_broken_occluder_file_is_named_with_its_line() {
     let (msg, line, _) = error_of(tmp.path(), &text);
     assert_eq!(line, line_of(&text, "missing.toml"), "{msg}");
 }
+
+const GOOD_SAMPLE: &str = r#"name = "s"
+seed = 3
+
+[camera]
+width = 640
+height = 480
+fx = 600.0
+
+[sample]
+markers = [{ system = "coppertag", family = "ct14" }]
+count = 10
+repeats = 2
+square_m = 0.05
+markers_per_frame = [1, 3]
+side_px = [20, 50]
+tilt_x_deg = [-45, 45]
+roll_deg = { values = [0, 90, 180] }
+pos_x = [0, 1]
+id = "any"
+contrast = [0.45, 0.88]
+background = ["flat", "clutter"]
+clutter_density = [0, 600]
+gradient = [0, 0.4]
+shadow_darkness = [0, 0.6]
+glare_peak = [0, 1.5]
+defocus_px = [0, 2]
+motion_blur_px = [0, 6]
+read_noise_dn = [0.5, 4]
+full_well_e = [5000, 20000]
+jpeg_quality = [50, 100]
+distortion_k1 = [-0.15, 0.05]
+occluder_kind = ["none", "stick", "flush-tape"]
+occluder_coverage = [0.02, 0.4]
+occluder_style = ["ink", "tape"]
+occluder_fill = [0.02, 0.95]
+"#;
+
+#[test]
+fn the_good_sampled_spec_loads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("spec.toml");
+    std::fs::write(&path, GOOD_SAMPLE).unwrap();
+    assert_eq!(DatasetSpec::load(&path).unwrap().image_count(), 20);
+}
+
+#[test]
+fn bad_sample_values_point_at_their_key() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (old, new, key, words) in [
+        ("count = 10", "count = 0", "count", "outside"),
+        ("repeats = 2", "repeats = 0", "repeats", "outside"),
+        (
+            "square_m = 0.05",
+            "square_m = -0.05",
+            "square_m",
+            "positive",
+        ),
+        (
+            "markers_per_frame = [1, 3]",
+            "markers_per_frame = [1, 9]",
+            "markers_per_frame",
+            "must lie in",
+        ),
+        (
+            "side_px = [20, 50]",
+            "side_px = [50, 20]",
+            "side_px",
+            "lo above hi",
+        ),
+        (
+            "side_px = [20, 50]",
+            "side_px = [20, 50, 80]",
+            "side_px",
+            "range is [lo, hi]",
+        ),
+        (
+            "side_px = [20, 50]",
+            "side_px = \"big\"",
+            "side_px",
+            "give a number",
+        ),
+        (
+            "side_px = [20, 50]",
+            "side_px = [20, 400]",
+            "side_px",
+            "does not fit",
+        ),
+        (
+            "tilt_x_deg = [-45, 45]",
+            "tilt_x_deg = [-95, 45]",
+            "tilt_x_deg",
+            "must lie in",
+        ),
+        (
+            "roll_deg = { values = [0, 90, 180] }",
+            "roll_deg = { values = [] }",
+            "roll_deg",
+            "a list is",
+        ),
+        (
+            "roll_deg = { values = [0, 90, 180] }",
+            "roll_deg = { vals = [0] }",
+            "roll_deg",
+            "a list is",
+        ),
+        ("pos_x = [0, 1]", "pos_x = [0, 1.5]", "pos_x", "must lie in"),
+        ("id = \"any\"", "id = [3, 300]", "id", "not 300"),
+        ("id = \"any\"", "id = \"some\"", "id", "give \"any\""),
+        (
+            "contrast = [0.45, 0.88]",
+            "contrast = [0.45, 0.99]",
+            "contrast",
+            "must lie in",
+        ),
+        (
+            "background = [\"flat\", \"clutter\"]",
+            "background = [\"flat\", \"wall\"]",
+            "background",
+            "'wall' is not one of",
+        ),
+        (
+            "background = [\"flat\", \"clutter\"]",
+            "background = [\"image\"]",
+            "background",
+            "needs background_images",
+        ),
+        (
+            "clutter_density = [0, 600]",
+            "clutter_density = [-1, 600]",
+            "clutter_density",
+            "must lie in",
+        ),
+        (
+            "gradient = [0, 0.4]",
+            "gradient = [0, 2]",
+            "gradient",
+            "must lie in",
+        ),
+        (
+            "shadow_darkness = [0, 0.6]",
+            "shadow_darkness = [0, 1.6]",
+            "shadow_darkness",
+            "must lie in",
+        ),
+        (
+            "glare_peak = [0, 1.5]",
+            "glare_peak = [-1, 1.5]",
+            "glare_peak",
+            "must lie in",
+        ),
+        (
+            "defocus_px = [0, 2]",
+            "defocus_px = [0, 200]",
+            "defocus_px",
+            "must lie in",
+        ),
+        (
+            "motion_blur_px = [0, 6]",
+            "motion_blur_px = [0, 600]",
+            "motion_blur_px",
+            "must lie in",
+        ),
+        (
+            "read_noise_dn = [0.5, 4]",
+            "read_noise_dn = [-0.5, 4]",
+            "read_noise_dn",
+            "must lie in",
+        ),
+        (
+            "full_well_e = [5000, 20000]",
+            "full_well_e = [-5, 20000]",
+            "full_well_e",
+            "must lie in",
+        ),
+        (
+            "jpeg_quality = [50, 100]",
+            "jpeg_quality = [0, 100]",
+            "jpeg_quality",
+            "must lie in",
+        ),
+        (
+            "distortion_k1 = [-0.15, 0.05]",
+            "distortion_k1 = [-0.9, 0.05]",
+            "distortion_k1",
+            "must lie in",
+        ),
+        (
+            "occluder_kind = [\"none\", \"stick\", \"flush-tape\"]",
+            "occluder_kind = [\"none\", \"rope\"]",
+            "occluder_kind",
+            "'rope' is not one of",
+        ),
+        (
+            "occluder_kind = [\"none\", \"stick\", \"flush-tape\"]",
+            "occluder_kind = [\"custom\"]",
+            "occluder_kind",
+            "'custom' is not one of",
+        ),
+        (
+            "occluder_coverage = [0.02, 0.4]",
+            "occluder_coverage = [0.02, 0.5]",
+            "occluder_coverage",
+            "must lie in",
+        ),
+        (
+            "occluder_coverage = [0.02, 0.4]",
+            "occluder_coverage = [0, 0.4]",
+            "occluder_coverage",
+            "above 0",
+        ),
+        (
+            "occluder_style = [\"ink\", \"tape\"]",
+            "occluder_style = [\"ink\", \"velvet\"]",
+            "occluder_style",
+            "'velvet' is not one of",
+        ),
+        (
+            "occluder_fill = [0.02, 0.95]",
+            "occluder_fill = [0.02, 1.95]",
+            "occluder_fill",
+            "must lie in",
+        ),
+    ] {
+        let text = GOOD_SAMPLE.replace(old, new);
+        assert_ne!(text, GOOD_SAMPLE, "{old}");
+        let (msg, line, _) = error_of(tmp.path(), &text);
+        assert_eq!(line, line_of(&text, &format!("{key} =")), "{msg}");
+        assert!(msg.contains(words), "{key}: {msg}");
+    }
+    // A marker type that does not exist.
+    let text = GOOD_SAMPLE.replace("family = \"ct14\"", "family = \"ct99\"");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "markers = ["), "{msg}");
+    // A photograph that is not there.
+    let text = GOOD_SAMPLE.replace(
+        "background = [\"flat\", \"clutter\"]",
+        "background = [\"image\"]\nbackground_images = [\"nowhere.png\"]",
+    );
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "background_images ="), "{msg}");
+    // Neither or both of side_px and distance_m.
+    let text = GOOD_SAMPLE.replace("side_px = [20, 50]\n", "");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "[sample]"), "{msg}");
+    let text = GOOD_SAMPLE.replace(
+        "side_px = [20, 50]",
+        "side_px = [20, 50]\ndistance_m = [1, 2]",
+    );
+    let (msg, _, _) = error_of(tmp.path(), &text);
+    assert!(
+        msg.contains("exactly one of side_px and distance_m"),
+        "{msg}"
+    );
+    // Unknown keys and a sweep beside the sample.
+    let text = GOOD_SAMPLE.replace("count = 10", "count = 10\ncolour = 3");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "colour ="), "{msg}");
+    let text = format!("{GOOD_SAMPLE}\n[sweep]\nparam = \"z\"\nfrom = 1\nto = 2\nstep = 1\n");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "[sweep]"), "{msg}");
+    assert!(msg.contains("does not go with [sample]"), "{msg}");
+}
