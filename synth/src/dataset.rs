@@ -124,7 +124,10 @@ impl Shard {
 /// Options of [`generate`].
 #[derive(Debug, Clone)]
 pub struct GenerateOptions {
-    /// Render only images whose index is a multiple of this (1 = all).
+    /// Render only every this many images (1 = all): those whose index is
+    /// a multiple of it, or, for a sampled spec with repeats, every this
+    /// many scenes with all their renders
+    /// ([`DatasetSpec::thinned_indices`]).
     pub every: usize,
     /// Replace an existing output directory.
     pub force: bool,
@@ -415,8 +418,9 @@ pub fn generate_shard(
 ) -> Result<GenerateReport> {
     let start = Instant::now();
     let every = opts.every.max(1);
-    let indices: Vec<usize> = (0..spec.image_count())
-        .step_by(every)
+    let indices: Vec<usize> = spec
+        .thinned_indices(every)
+        .into_iter()
         .filter(|&i| shard.is_none_or(|sh| sh.contains(i)))
         .collect();
     if out.exists() && !opts.force {

@@ -31,7 +31,9 @@ use super::report::preamble;
     absent) without a marker prefix are run by every detector; the wild runs make the report's wild\n\
     section (rough detections, pose error, jitter, false positives per MP, factor curves).")]
 pub struct ReproduceArgs {
-    /// A tenth of every sweep (every 10th image).
+    /// A tenth of every sweep (every 10th image; of a sampled spec with
+    /// repeats, every 10th scene with all its renders, so that jitter is
+    /// measured in quick mode too).
     #[arg(long)]
     pub quick: bool,
 
@@ -167,7 +169,7 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
                     every
                 };
                 let pb = bar(
-                    spec.image_count().div_ceil(every),
+                    spec.thinned_indices(every).len(),
                     &format!("{label} render"),
                     args.quiet,
                 );

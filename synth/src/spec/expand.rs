@@ -46,6 +46,22 @@ impl DatasetSpec {
         sweep * occ * self.repeat
     }
 
+    /// The images a thinned run renders (`every` = 10 in quick mode): every
+    /// `every`-th image, except that a sampled spec with repeats takes
+    /// every `every`-th scene with all its renders, since a jitter group
+    /// cut down to one render measures no jitter.
+    #[must_use]
+    pub fn thinned_indices(&self, every: usize) -> Vec<usize> {
+        let every = every.max(1);
+        match &self.sample {
+            Some(s) if s.repeats > 1 => (0..s.count)
+                .step_by(every)
+                .flat_map(|scene| scene * s.repeats..(scene + 1) * s.repeats)
+                .collect(),
+            _ => (0..self.image_count()).step_by(every).collect(),
+        }
+    }
+
     /// What image `index` is made of.
     #[must_use]
     pub fn frame(&self, index: usize) -> Frame {
