@@ -124,10 +124,9 @@ impl Shard {
 /// Options of [`generate`].
 #[derive(Debug, Clone)]
 pub struct GenerateOptions {
-    /// Render only every this many images (1 = all): those whose index is
-    /// a multiple of it, or, for a sampled spec with repeats, every this
-    /// many scenes with all their renders
-    /// ([`DatasetSpec::thinned_indices`]).
+    /// Render only one in this many images (1 = all): of a sweep, those
+    /// whose index is a multiple of it; of a sampled spec, the first scenes
+    /// with all their renders ([`DatasetSpec::thinned_indices`] says why).
     pub every: usize,
     /// Replace an existing output directory.
     pub force: bool,

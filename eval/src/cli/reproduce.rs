@@ -31,9 +31,9 @@ use super::report::preamble;
     absent) without a marker prefix are run by every detector; the wild runs make the report's wild\n\
     section (rough detections, pose error, jitter, false positives per MP, factor curves).")]
 pub struct ReproduceArgs {
-    /// A tenth of every sweep (every 10th image; of a sampled spec with
-    /// repeats, every 10th scene with all its renders, so that jitter is
-    /// measured in quick mode too).
+    /// A tenth of every set: every 10th image of a sweep; of a sampled
+    /// (wild) spec, its first tenth of scenes with all their renders (an
+    /// even spread over every factor, and jitter groups kept whole).
     #[arg(long)]
     pub quick: bool,
 

@@ -47,18 +47,21 @@ impl DatasetSpec {
     }
 
     /// The images a thinned run renders (`every` = 10 in quick mode): every
-    /// `every`-th image, except that a sampled spec with repeats takes
-    /// every `every`-th scene with all its renders, since a jitter group
-    /// cut down to one render measures no jitter.
+    /// `every`-th image of a sweep; of a sampled spec, the first
+    /// `count / every` scenes (rounded up) with all their renders.
+    ///
+    /// A prefix, not every `every`-th scene: a prefix of a Halton sequence
+    /// is itself spread evenly over every factor, while every 10th point
+    /// is not (its index is even and a multiple of 5, so the factors drawn
+    /// in bases 2 and 5 would keep one half and one fifth of their range).
+    /// And all renders of a scene, since a jitter group cut down to one
+    /// render measures no jitter.
     #[must_use]
     pub fn thinned_indices(&self, every: usize) -> Vec<usize> {
         let every = every.max(1);
         match &self.sample {
-            Some(s) if s.repeats > 1 => (0..s.count)
-                .step_by(every)
-                .flat_map(|scene| scene * s.repeats..(scene + 1) * s.repeats)
-                .collect(),
-            _ => (0..self.image_count()).step_by(every).collect(),
+            Some(s) => (0..s.count.div_ceil(every) * s.repeats).collect(),
+            None => (0..self.image_count()).step_by(every).collect(),
         }
     }
 
