@@ -40,4 +40,4 @@ mod toml_input;
 pub use dataset::{generate, generate_shard, GenerateOptions, GenerateReport, Shard};
 pub use error::{Result, SynthError};
 pub use markers::{MarkerModel, MarkerSystem};
-pub use spec::DatasetSpec;
+pub use spec::{DatasetSpec, LoadOptions};

@@ -469,3 +469,73 @@ fn bad_sample_values_point_at_their_key() {
     assert_eq!(line, line_of(&text, "[sweep]"), "{msg}");
     assert!(msg.contains("does not go with [sample]"), "{msg}");
 }
+
+const PHOTO_SPEC: &str = r#"seed = 5
+[camera]
+width = 200
+height = 150
+fx = 200.0
+[sample]
+count = 3
+square_m = 0.05
+markers = []
+markers_per_frame = 0
+background = ["image"]
+background_dir = "photos"
+"#;
+
+#[test]
+fn bad_photo_directories_point_at_background_dir() {
+    let tmp = tempfile::tempdir().unwrap();
+    // Absent.
+    let (msg, line, _) = error_of(tmp.path(), PHOTO_SPEC);
+    assert_eq!(line, line_of(PHOTO_SPEC, "background_dir ="), "{msg}");
+    assert!(msg.contains("no such directory"), "{msg}");
+    assert!(msg.contains("export_photos.py"), "{msg}");
+    // Empty.
+    let photos = tmp.path().join("photos");
+    std::fs::create_dir(&photos).unwrap();
+    let (msg, line, _) = error_of(tmp.path(), PHOTO_SPEC);
+    assert_eq!(line, line_of(PHOTO_SPEC, "background_dir ="), "{msg}");
+    assert!(msg.contains("no *.png"), "{msg}");
+    // A corrupt PNG.
+    std::fs::write(photos.join("x.png"), b"\x89PNG\r\n\x1a\nnot really").unwrap();
+    let (msg, line, _) = error_of(tmp.path(), PHOTO_SPEC);
+    assert_eq!(line, line_of(PHOTO_SPEC, "background_dir ="), "{msg}");
+    assert!(msg.contains("x.png"), "{msg}");
+    // Too small.
+    image::GrayImage::new(20, 20)
+        .save(photos.join("x.png"))
+        .unwrap();
+    let (msg, _, _) = error_of(tmp.path(), PHOTO_SPEC);
+    assert!(msg.contains("smaller than"), "{msg}");
+    // Wrong type.
+    let text = PHOTO_SPEC.replace("\"photos\"", "3");
+    let (msg, line, _) = error_of(tmp.path(), &text);
+    assert_eq!(line, line_of(&text, "background_dir ="), "{msg}");
+    // --photos on a spec without background_dir.
+    let path = tmp.path().join("spec.toml");
+    let text = PHOTO_SPEC
+        .replace("background_dir = \"photos\"\n", "")
+        .replace("[\"image\"]", "[\"flat\"]");
+    std::fs::write(&path, &text).unwrap();
+    let opts = coppertag_synth::LoadOptions {
+        photos_dir: Some(photos.clone()),
+    };
+    match DatasetSpec::load_with(&path, &opts) {
+        Err(SynthError::Input { line, message, .. }) => {
+            assert_eq!(line, line_of(&text, "[sample]"));
+            assert!(message.contains("--photos"), "{message}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // A missing --photos directory names it.
+    std::fs::write(&path, PHOTO_SPEC).unwrap();
+    let opts = coppertag_synth::LoadOptions {
+        photos_dir: Some(tmp.path().join("nowhere")),
+    };
+    let e = DatasetSpec::load_with(&path, &opts)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nowhere") && e.contains("--photos"), "{e}");
+}

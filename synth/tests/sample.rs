@@ -374,3 +374,88 @@ clutter_density = [50, 1500]
         4
     );
 }
+
+/// A grey test photograph: a smooth pattern that differs per `k`.
+fn write_photo(dir: &Path, name: &str, k: u32) {
+    let img = image::GrayImage::from_fn(160, 120, |x, y| {
+        image::Luma([((x * (3 + k) + y * (5 + 2 * k) + (x * y) / 7) % 256) as u8])
+    });
+    img.save(dir.join(name)).unwrap();
+}
+
+const PHOTO_SPEC: &str = r#"
+seed = 5
+[camera]
+width = 200
+height = 150
+fx = 200.0
+[sample]
+count = 6
+square_m = 0.05
+markers = []
+markers_per_frame = 0
+background = ["image"]
+background_dir = "photos"
+gradient = [0, 0.4]
+shadow_darkness = [0, 0.6]
+defocus_px = [0, 2]
+motion_blur_px = [0, 6]
+read_noise_dn = [0.5, 4]
+full_well_e = [5000, 20000]
+jpeg_quality = [50, 100]
+distortion_k1 = [-0.15, 0.05]
+"#;
+
+#[test]
+fn photo_frames_depend_on_the_photographs_not_their_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let photos = tmp.path().join("photos");
+    std::fs::create_dir(&photos).unwrap();
+    for (k, name) in ["b.png", "a.png", "c.png"].iter().enumerate() {
+        write_photo(&photos, name, k as u32);
+    }
+    // Not a PNG: ignored.
+    std::fs::write(photos.join("photos.json"), "{}").unwrap();
+    let path = write(tmp.path(), "fp.toml", PHOTO_SPEC);
+    let spec = DatasetSpec::load(&path).unwrap();
+    let s = spec.sample.as_ref().unwrap();
+    let names: Vec<String> = s
+        .background_images
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    assert_eq!(names, ["a.png", "b.png", "c.png"]);
+    assert_eq!(s.background_digests.len(), 3);
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    run(1, &spec, &a, None);
+    run(2, &spec, &b, None);
+    let ta = read_tree(&a);
+    assert_eq!(ta, read_tree(&b), "1 and 2 threads differ");
+    let (_, draws) = csv_rows(&a.join("draws.csv"));
+    let used: std::collections::BTreeSet<&str> = draws
+        .iter()
+        .filter(|d| d[2] == "background_image")
+        .map(|d| d[3].as_str())
+        .collect();
+    assert!(used.len() >= 2, "photos used: {used:?}");
+    // The same photographs elsewhere, through --photos: the same bytes.
+    let moved = tmp.path().join("elsewhere");
+    std::fs::rename(&photos, &moved).unwrap();
+    let opts = coppertag_synth::LoadOptions {
+        photos_dir: Some(moved.clone()),
+    };
+    let spec2 = DatasetSpec::load_with(&path, &opts).unwrap();
+    let c = tmp.path().join("c");
+    run(2, &spec2, &c, None);
+    assert_eq!(
+        ta,
+        read_tree(&c),
+        "a moved photo directory changed the bytes"
+    );
+    // Other photographs: other frames.
+    write_photo(&moved, "a.png", 7);
+    let spec3 = DatasetSpec::load_with(&path, &opts).unwrap();
+    let d = tmp.path().join("d");
+    run(1, &spec3, &d, None);
+    assert_ne!(ta, read_tree(&d));
+}

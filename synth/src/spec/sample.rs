@@ -230,8 +230,15 @@ pub struct Sample {
     pub background: Option<Vec<BackgroundChoice>>,
     /// Clutter shapes per megapixel.
     pub clutter_density: Option<Factor>,
-    /// Background image files as written.
+    /// Background photographs: the `background_images` as written, then
+    /// the file names of the `*.png` in `background_dir` (name order).
     pub background_images: Vec<PathBuf>,
+    /// The photo directory as written in the spec (`--photos` may have
+    /// replaced it; the digests say which photographs were used).
+    pub background_dir: Option<PathBuf>,
+    /// FNV-1a 64 digest of each photograph's size and grey pixels, so
+    /// `dataset.json` identifies the photographs wherever they were read.
+    pub background_digests: Vec<String>,
     /// Background photographs, grey, full size.
     #[serde(skip)]
     pub background_sources: Vec<Arc<image::GrayImage>>,
@@ -389,12 +396,56 @@ fn occluder_style(name: &str) -> Option<OccluderStyle> {
         .map(OccluderStyle::Style)
 }
 
+/// A photograph as grey levels; `Err` says why it cannot be used.
+fn load_photo(path: &Path) -> std::result::Result<image::GrayImage, String> {
+    let img = image::open(path).map_err(|e| e.to_string())?.to_luma8();
+    if img.width() < MIN_PHOTO_SIDE_PX || img.height() < MIN_PHOTO_SIDE_PX {
+        return Err(format!("smaller than {MIN_PHOTO_SIDE_PX} px"));
+    }
+    Ok(img)
+}
+
+/// The `*.png` files of a photo directory, in file-name order.
+fn photo_files(dir: &Path) -> std::result::Result<Vec<PathBuf>, String> {
+    if !dir.is_dir() {
+        return Err(format!(
+            "no such directory (write the photographs with `python eval/peers/export_photos.py {}`, or give --photos DIR)",
+            dir.display()
+        ));
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| e.to_string())?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "png") && p.is_file())
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err("no *.png photographs in this directory".into());
+    }
+    Ok(files)
+}
+
+/// FNV-1a (Fowler, Noll, Vo), 64 bits, over the width, height and grey
+/// levels of a photograph, as 16 hex digits.
+fn photo_digest(img: &image::GrayImage) -> String {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut h = OFFSET;
+    let size = [img.width().to_le_bytes(), img.height().to_le_bytes()];
+    for b in size.iter().flatten().chain(img.as_raw().iter()) {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(PRIME);
+    }
+    format!("{h:016x}")
+}
+
 /// The validated `[sample]` of a spec whose base settings are `base`.
 pub(super) fn sample(
     loc: &KeyLocator,
     sf: &SampleFile,
     base: &Rendering,
     base_dir: &Path,
+    photos_dir: Option<&Path>,
 ) -> Result<Sample> {
     let r = Reader { loc };
     let at = |key: &str, m: String| loc.err(steps!["sample", key], format!("sample.{key}: {m}"));
@@ -502,30 +553,54 @@ pub(super) fn sample(
     let wants_images = background
         .as_ref()
         .is_some_and(|b| b.contains(&BackgroundChoice::Image));
-    if wants_images && sf.background_images.is_empty() {
-        return Err(at("background", "\"image\" needs background_images".into()));
-    }
-    let mut background_sources = Vec::new();
+    let mut photos = Vec::new();
     for (i, p) in sf.background_images.iter().enumerate() {
         let full = base_dir.join(p);
-        let img = image::open(&full)
-            .map(|i| i.to_luma8())
-            .map_err(|e| e.to_string())
-            .and_then(|img| {
-                if img.width() < MIN_PHOTO_SIDE_PX || img.height() < MIN_PHOTO_SIDE_PX {
-                    Err(format!("smaller than {MIN_PHOTO_SIDE_PX} px"))
-                } else {
-                    Ok(img)
-                }
-            })
-            .map_err(|e| {
-                loc.err(
-                    steps!["sample", "background_images", i],
-                    format!("sample.background_images: {}: {e}", full.display()),
-                )
-            })?;
-        background_sources.push(Arc::new(img));
+        let img = load_photo(&full).map_err(|e| {
+            loc.err(
+                steps!["sample", "background_images", i],
+                format!("sample.background_images: {}: {e}", full.display()),
+            )
+        })?;
+        photos.push((p.clone(), img));
     }
+    if photos_dir.is_some() && sf.background_dir.is_none() {
+        return Err(loc.err(
+            steps!["sample"],
+            "--photos replaces sample.background_dir, which this spec does not have".into(),
+        ));
+    }
+    if let Some(written) = &sf.background_dir {
+        let dir = photos_dir.map_or_else(|| base_dir.join(written), Path::to_path_buf);
+        let at_dir = |m: String| {
+            loc.err(
+                steps!["sample", "background_dir"],
+                format!("sample.background_dir: {}: {m}", dir.display()),
+            )
+        };
+        let files = photo_files(&dir).map_err(|m| {
+            let from = if photos_dir.is_some() {
+                " (the --photos directory)"
+            } else {
+                ""
+            };
+            at_dir(format!("{m}{from}"))
+        })?;
+        for f in files {
+            let img = load_photo(&f).map_err(|e| at_dir(format!("{}: {e}", f.display())))?;
+            let name = f.file_name().map(PathBuf::from).unwrap_or_default();
+            photos.push((name, img));
+        }
+    }
+    if wants_images && photos.is_empty() {
+        return Err(at(
+            "background",
+            "\"image\" needs background_images or background_dir".into(),
+        ));
+    }
+    let background_digests = photos.iter().map(|(_, img)| photo_digest(img)).collect();
+    let (background_images, background_sources): (Vec<PathBuf>, Vec<Arc<image::GrayImage>>) =
+        photos.into_iter().map(|(n, i)| (n, Arc::new(i))).unzip();
     let occluder_kind = r.choices(
         "occluder_kind",
         sf.occluder_kind.as_ref(),
@@ -589,7 +664,9 @@ pub(super) fn sample(
             0.0,
             20_000.0,
         )?,
-        background_images: sf.background_images.clone(),
+        background_images,
+        background_dir: sf.background_dir.clone(),
+        background_digests,
         background_sources,
         gradient: r.factor("gradient", sf.gradient.as_ref(), 0.0, 1.0)?,
         shadow_darkness: r.factor("shadow_darkness", sf.shadow_darkness.as_ref(), 0.0, 1.0)?,

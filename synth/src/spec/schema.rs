@@ -242,6 +242,7 @@ pub(super) struct SampleFile {
     pub clutter_density: Option<toml::Value>,
     #[serde(default)]
     pub background_images: Vec<PathBuf>,
+    pub background_dir: Option<PathBuf>,
     pub gradient: Option<toml::Value>,
     pub shadow_darkness: Option<toml::Value>,
     pub glare_peak: Option<toml::Value>,
