@@ -20,6 +20,7 @@
 pub mod background;
 pub mod camera;
 pub mod coverage;
+pub mod cutout;
 pub mod dataset;
 pub mod effects;
 mod error;

@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::error::Result;
 use crate::markers::{MarkerModel, MarkerSystem};
-use crate::occlusion::{Scenario, Style};
+use crate::occlusion::{self, Occlusion, Scenario, Style};
 use crate::scene::Rendering;
 use crate::toml_input::{steps, KeyLocator};
 
@@ -156,17 +156,9 @@ pub enum OccluderKind {
     None,
     /// A generated occlusion of this scenario.
     Generated(Scenario),
-}
-
-impl OccluderKind {
-    /// Name in files.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            OccluderKind::None => "none",
-            OccluderKind::Generated(s) => s.name(),
-        }
-    }
+    /// Pattern `k` of `occluder_files` (drawn as written, turned by a
+    /// random number of quarter turns).
+    File(usize),
 }
 
 /// The look of a sampled occluder.
@@ -262,6 +254,12 @@ pub struct Sample {
     pub distortion_k1: Option<Factor>,
     /// Occluder kinds.
     pub occluder_kind: Option<Vec<OccluderKind>>,
+    /// Pattern files whose patterns are occluder kinds (named by the
+    /// pattern's name), as written; a directory is listed file by file.
+    pub occluder_files: Vec<PathBuf>,
+    /// Their patterns, in the same order.
+    #[serde(skip)]
+    pub occluder_patterns: Vec<Arc<Occlusion>>,
     /// Occluder coverage of the marker square.
     pub occluder_coverage: Option<Factor>,
     /// Occluder reflectance (overrides the style's fill).
@@ -379,12 +377,73 @@ impl Reader<'_, '_> {
     }
 }
 
+/// A built-in occluder kind by name.
 fn occluder_kind(name: &str) -> Option<OccluderKind> {
     if name == "none" {
         return Some(OccluderKind::None);
     }
     let s: Scenario = serde_json::from_value(serde_json::Value::String(name.into())).ok()?;
     (s != Scenario::Custom).then_some(OccluderKind::Generated(s))
+}
+
+/// The built-in occluder kinds, for messages.
+const BUILT_IN_KINDS: &str =
+    "none, triangle, same-side, symmetry, diagonal, inner, stick, cable, flush-tape, blob";
+
+impl Sample {
+    /// Name of an occluder kind in files.
+    #[must_use]
+    pub fn kind_name(&self, kind: OccluderKind) -> String {
+        match kind {
+            OccluderKind::None => "none".into(),
+            OccluderKind::Generated(s) => s.name().into(),
+            OccluderKind::File(k) => self.occluder_patterns[k].name.clone(),
+        }
+    }
+}
+
+/// The patterns of `occluder_files`: (file as shown, pattern).
+fn occluder_files(
+    loc: &KeyLocator,
+    files: &[PathBuf],
+    base_dir: &Path,
+) -> Result<Vec<(PathBuf, Arc<Occlusion>)>> {
+    let mut out: Vec<(PathBuf, Arc<Occlusion>)> = Vec::new();
+    for (i, p) in files.iter().enumerate() {
+        let at = |m: String| {
+            loc.err(
+                steps!["sample", "occluder_files", i],
+                format!("sample.occluder_files: {m}"),
+            )
+        };
+        let full = base_dir.join(p);
+        let found = occlusion::pattern_files(&full).map_err(|e| at(e.to_string()))?;
+        for f in found {
+            // Errors inside a pattern file name that file, line and column.
+            let occ = Occlusion::load(&f)?;
+            if occluder_kind(&occ.name).is_some() || occ.name == "custom" {
+                return Err(at(format!(
+                    "{}: pattern name '{}' is a built-in occluder kind; give the pattern another name",
+                    f.display(),
+                    occ.name
+                )));
+            }
+            if out.iter().any(|(_, o)| o.name == occ.name) {
+                return Err(at(format!(
+                    "{}: a second pattern named '{}'",
+                    f.display(),
+                    occ.name
+                )));
+            }
+            let shown = if full.is_dir() {
+                p.join(f.file_name().unwrap_or_default())
+            } else {
+                p.clone()
+            };
+            out.push((shown, Arc::new(occ)));
+        }
+    }
+    Ok(out)
 }
 
 fn occluder_style(name: &str) -> Option<OccluderStyle> {
@@ -601,21 +660,44 @@ pub(super) fn sample(
     let background_digests = photos.iter().map(|(_, img)| photo_digest(img)).collect();
     let (background_images, background_sources): (Vec<PathBuf>, Vec<Arc<image::GrayImage>>) =
         photos.into_iter().map(|(n, i)| (n, Arc::new(i))).unzip();
+    let (occluder_files, occluder_patterns): (Vec<PathBuf>, Vec<Arc<Occlusion>>) =
+        occluder_files(loc, &sf.occluder_files, base_dir)?
+            .into_iter()
+            .unzip();
+    let mut allowed = BUILT_IN_KINDS.to_string();
+    for p in &occluder_patterns {
+        allowed.push_str(", ");
+        allowed.push_str(&p.name);
+    }
     let occluder_kind = r.choices(
         "occluder_kind",
         sf.occluder_kind.as_ref(),
-        occluder_kind,
-        "none, triangle, same-side, symmetry, diagonal, inner, stick, cable, flush-tape, blob",
+        |n| {
+            occluder_kind(n).or_else(|| {
+                occluder_patterns
+                    .iter()
+                    .position(|p| p.name == n)
+                    .map(OccluderKind::File)
+            })
+        },
+        &allowed,
     )?;
+    if !occluder_patterns.is_empty() && occluder_kind.is_none() {
+        return Err(at(
+            "occluder_files",
+            "the patterns are used through occluder_kind, which is missing".into(),
+        ));
+    }
     let occluder_coverage = r.factor(
         "occluder_coverage",
         sf.occluder_coverage.as_ref(),
         0.0,
         crate::floor_occluders::MAX_FLOOR_COVERAGE,
     )?;
+    // Only generated occluders are sized to the drawn coverage.
     let occludes = occluder_kind
         .as_ref()
-        .is_some_and(|k| k.iter().any(|k| *k != OccluderKind::None));
+        .is_some_and(|k| k.iter().any(|k| matches!(k, OccluderKind::Generated(_))));
     if occludes {
         match &occluder_coverage {
             None => {
@@ -683,6 +765,8 @@ pub(super) fn sample(
         jpeg_quality: r.factor("jpeg_quality", sf.jpeg_quality.as_ref(), 1.0, 100.0)?,
         distortion_k1: r.factor("distortion_k1", sf.distortion_k1.as_ref(), -0.5, 0.5)?,
         occluder_kind,
+        occluder_files,
+        occluder_patterns,
         occluder_coverage,
         occluder_fill: r.factor("occluder_fill", sf.occluder_fill.as_ref(), 0.0, 1.0)?,
         occluder_style: r.choices(

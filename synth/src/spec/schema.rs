@@ -253,6 +253,8 @@ pub(super) struct SampleFile {
     pub jpeg_quality: Option<toml::Value>,
     pub distortion_k1: Option<toml::Value>,
     pub occluder_kind: Option<toml::Value>,
+    #[serde(default)]
+    pub occluder_files: Vec<PathBuf>,
     pub occluder_coverage: Option<toml::Value>,
     pub occluder_fill: Option<toml::Value>,
     pub occluder_style: Option<toml::Value>,
