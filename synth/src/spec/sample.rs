@@ -326,8 +326,15 @@ impl Reader<'_, '_> {
                 }
             },
         };
+        let values = match &f {
+            Factor::Range(lo, hi) => vec![*lo, *hi],
+            Factor::List(v) => v.clone(),
+        };
+        if values.iter().any(|x| !x.is_finite()) {
+            return Err(err("values must be finite numbers".into()));
+        }
         let (lo, hi) = f.bounds();
-        if !(lo.is_finite() && hi.is_finite() && lo >= min && hi <= max) {
+        if !(lo >= min && hi <= max) {
             return Err(err(format!(
                 "values must lie in {min}..={max} (got {lo}..={hi})"
             )));
@@ -612,8 +619,22 @@ pub(super) fn sample(
     let wants_images = background
         .as_ref()
         .is_some_and(|b| b.contains(&BackgroundChoice::Image));
+    for (key, empty) in [
+        (
+            "background_images",
+            sf.background_images.as_ref().is_some_and(Vec::is_empty),
+        ),
+        (
+            "occluder_files",
+            sf.occluder_files.as_ref().is_some_and(Vec::is_empty),
+        ),
+    ] {
+        if empty {
+            return Err(at(key, "an empty list (leave the key out)".into()));
+        }
+    }
     let mut photos = Vec::new();
-    for (i, p) in sf.background_images.iter().enumerate() {
+    for (i, p) in sf.background_images.iter().flatten().enumerate() {
         let full = base_dir.join(p);
         let img = load_photo(&full).map_err(|e| {
             loc.err(
@@ -660,10 +681,13 @@ pub(super) fn sample(
     let background_digests = photos.iter().map(|(_, img)| photo_digest(img)).collect();
     let (background_images, background_sources): (Vec<PathBuf>, Vec<Arc<image::GrayImage>>) =
         photos.into_iter().map(|(n, i)| (n, Arc::new(i))).unzip();
-    let (occluder_files, occluder_patterns): (Vec<PathBuf>, Vec<Arc<Occlusion>>) =
-        occluder_files(loc, &sf.occluder_files, base_dir)?
-            .into_iter()
-            .unzip();
+    let (occluder_files, occluder_patterns): (Vec<PathBuf>, Vec<Arc<Occlusion>>) = occluder_files(
+        loc,
+        sf.occluder_files.as_deref().unwrap_or_default(),
+        base_dir,
+    )?
+    .into_iter()
+    .unzip();
     let mut allowed = BUILT_IN_KINDS.to_string();
     for p in &occluder_patterns {
         allowed.push_str(", ");
