@@ -251,6 +251,7 @@ pub fn generate(
                     .map(|polygon| Occluder {
                         polygon,
                         appearance,
+                        cutout: None,
                     })
                     .collect(),
             });

@@ -20,6 +20,7 @@
 pub mod background;
 pub mod camera;
 pub mod coverage;
+pub mod cutout;
 pub mod dataset;
 pub mod effects;
 mod error;
@@ -40,4 +41,4 @@ mod toml_input;
 pub use dataset::{generate, generate_shard, GenerateOptions, GenerateReport, Shard};
 pub use error::{Result, SynthError};
 pub use markers::{MarkerModel, MarkerSystem};
-pub use spec::DatasetSpec;
+pub use spec::{DatasetSpec, LoadOptions};

@@ -19,6 +19,7 @@ use coppertag::geometry::Paint;
 use crate::background::Background;
 use crate::camera::Camera;
 use crate::coverage::{Canvas, Rasterizer};
+use crate::cutout::{Cutout, DRAW_SUPERSAMPLE};
 use crate::effects::{self, Effects, Lighting, Sensor};
 use crate::error::{Result, SynthError};
 use crate::markers::{MarkerModel, CORNERS};
@@ -243,6 +244,48 @@ pub struct Rendered {
     pub markers: Vec<MarkerTruth>,
 }
 
+/// Paints a cutout (an image with alpha on the marker plane) on the pixels
+/// its outline `poly` (tiny-skia coordinates) touches: each pixel is the
+/// mean of [`DRAW_SUPERSAMPLE`]^2 sub-samples, each the cutout's bilinear
+/// premultiplied grey and alpha at the marker-plane point seen there,
+/// blended over the pixel ("over" compositing, Porter and Duff 1984).
+fn paint_cutout(
+    data: &mut [f32],
+    w: usize,
+    h: usize,
+    raster: &mut Rasterizer,
+    poly: &[[f64; 2]],
+    view: &MarkerView,
+    cut: &Cutout,
+) {
+    let n = DRAW_SUPERSAMPLE;
+    let inv = 1.0 / (n * n) as f32;
+    raster.coverage(
+        &[poly.to_vec()],
+        tiny_skia::FillRule::Winding,
+        w,
+        h,
+        |x, y, _| {
+            let (mut pm, mut a) = (0.0f32, 0.0f32);
+            for j in 0..n {
+                for i in 0..n {
+                    let q = [
+                        x as f64 + (i as f64 + 0.5) / n as f64 - 0.5,
+                        y as f64 + (j as f64 + 0.5) / n as f64 - 0.5,
+                    ];
+                    if let Some((p, _)) = view.unproject(q) {
+                        let (g, al) = cut.sample([p[0] + 0.5, p[1] + 0.5]);
+                        pm += g;
+                        a += al;
+                    }
+                }
+            }
+            let px = &mut data[y * w + x];
+            *px = pm * inv + *px * (1.0 - a * inv);
+        },
+    );
+}
+
 /// Depth of a marker's centre, for painting order.
 fn centre_depth(m: &PlacedMarker) -> f64 {
     m.pose.translation.z
@@ -316,6 +359,11 @@ impl Scene {
                     let app = o.appearance;
                     let flat = matches!(app.texture, crate::occlusion::Texture::None);
                     let data = &mut canvas.data;
+                    if let Some(cut) = &o.cutout {
+                        paint_cutout(data, w, h, raster, &poly, &view, cut);
+                        polygons_px.push(poly.iter().map(|p| [p[0] - 0.5, p[1] - 0.5]).collect());
+                        continue;
+                    }
                     raster.coverage(
                         std::slice::from_ref(&poly),
                         tiny_skia::FillRule::Winding,

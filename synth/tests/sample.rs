@@ -374,3 +374,184 @@ clutter_density = [50, 1500]
         4
     );
 }
+
+/// A grey test photograph: a smooth pattern that differs per `k`.
+fn write_photo(dir: &Path, name: &str, k: u32) {
+    let img = image::GrayImage::from_fn(160, 120, |x, y| {
+        image::Luma([((x * (3 + k) + y * (5 + 2 * k) + (x * y) / 7) % 256) as u8])
+    });
+    img.save(dir.join(name)).unwrap();
+}
+
+const PHOTO_SPEC: &str = r#"
+seed = 5
+[camera]
+width = 200
+height = 150
+fx = 200.0
+[sample]
+count = 6
+square_m = 0.05
+markers = []
+markers_per_frame = 0
+background = ["image"]
+background_dir = "photos"
+gradient = [0, 0.4]
+shadow_darkness = [0, 0.6]
+defocus_px = [0, 2]
+motion_blur_px = [0, 6]
+read_noise_dn = [0.5, 4]
+full_well_e = [5000, 20000]
+jpeg_quality = [50, 100]
+distortion_k1 = [-0.15, 0.05]
+"#;
+
+#[test]
+fn photo_frames_depend_on_the_photographs_not_their_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let photos = tmp.path().join("photos");
+    std::fs::create_dir(&photos).unwrap();
+    for (k, name) in ["b.png", "a.png", "c.png"].iter().enumerate() {
+        write_photo(&photos, name, k as u32);
+    }
+    // Not a PNG: ignored.
+    std::fs::write(photos.join("photos.json"), "{}").unwrap();
+    let path = write(tmp.path(), "fp.toml", PHOTO_SPEC);
+    let spec = DatasetSpec::load(&path).unwrap();
+    let s = spec.sample.as_ref().unwrap();
+    let names: Vec<String> = s
+        .background_images
+        .iter()
+        .map(|p| p.display().to_string())
+        .collect();
+    assert_eq!(names, ["a.png", "b.png", "c.png"]);
+    assert_eq!(s.background_digests.len(), 3);
+    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
+    run(1, &spec, &a, None);
+    run(2, &spec, &b, None);
+    let ta = read_tree(&a);
+    assert_eq!(ta, read_tree(&b), "1 and 2 threads differ");
+    let (_, draws) = csv_rows(&a.join("draws.csv"));
+    let used: std::collections::BTreeSet<&str> = draws
+        .iter()
+        .filter(|d| d[2] == "background_image")
+        .map(|d| d[3].as_str())
+        .collect();
+    assert!(used.len() >= 2, "photos used: {used:?}");
+    // The same photographs elsewhere, through --photos: the same bytes.
+    let moved = tmp.path().join("elsewhere");
+    std::fs::rename(&photos, &moved).unwrap();
+    let opts = coppertag_synth::LoadOptions {
+        photos_dir: Some(moved.clone()),
+    };
+    let spec2 = DatasetSpec::load_with(&path, &opts).unwrap();
+    let c = tmp.path().join("c");
+    run(2, &spec2, &c, None);
+    assert_eq!(
+        ta,
+        read_tree(&c),
+        "a moved photo directory changed the bytes"
+    );
+    // Other photographs: other frames.
+    write_photo(&moved, "a.png", 7);
+    let spec3 = DatasetSpec::load_with(&path, &opts).unwrap();
+    let d = tmp.path().join("d");
+    run(1, &spec3, &d, None);
+    assert_ne!(ta, read_tree(&d));
+}
+
+/// Every factor of `[sample]`, four marker systems, every occluder kind
+/// (the ten built-in ones, two cutouts and a polygon pattern file), photo
+/// backgrounds from a list and a directory, and repeats.
+const EVERYTHING: &str = r#"
+name = "everything"
+seed = 21
+
+[camera]
+width = 240
+height = 180
+fx = 250.0
+
+[sample]
+markers = [{ system = "coppertag", family = "ct14" }, { system = "apriltag3" }, { system = "aruco3" }, { system = "stag" }]
+count = 14
+repeats = 2
+square_m = 0.05
+markers_per_frame = [1, 3]
+side_px = [16, 30]
+tilt_x_deg = [-45, 45]
+tilt_y_deg = [-45, 45]
+roll_deg = [0, 360]
+pos_x = [0, 1]
+pos_y = [0, 1]
+id = [0, 1, 2, 3, 4, 5]
+contrast = [0.45, 0.88]
+background = ["flat", "gradient", "clutter", "image"]
+clutter_density = [0, 600]
+background_images = ["wall.png"]
+background_dir = "photos"
+gradient = [0, 0.4]
+shadow_darkness = [0, 0.6]
+glare_peak = [0, 1.5]
+defocus_px = [0, 2]
+motion_blur_px = [0, 6]
+read_noise_dn = [0.5, 4]
+full_well_e = [5000, 20000]
+jpeg_quality = [50, 100]
+distortion_k1 = [-0.15, 0.05]
+occluder_kind = ["none", "triangle", "same-side", "symmetry", "diagonal", "inner", "stick", "cable", "flush-tape", "blob", "glove-cutout", "cable-cutout", "05-1-triangle"]
+occluder_files = ["cutouts", "paper/05-1-triangle.toml"]
+occluder_coverage = [0.02, 0.4]
+occluder_style = ["ink", "tape", "cable", "dirt", "paint", "cardboard", "solid"]
+occluder_fill = [0.02, 0.95]
+"#;
+
+#[test]
+fn every_factor_and_occluder_kind_gives_the_same_bytes_on_1_and_2_threads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    write_photo(dir, "wall.png", 1);
+    std::fs::create_dir(dir.join("photos")).unwrap();
+    write_photo(&dir.join("photos"), "p.png", 2);
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/occlusions");
+    for sub in ["cutouts", "paper"] {
+        std::fs::create_dir(dir.join(sub)).unwrap();
+    }
+    for f in ["glove.toml", "glove.png", "cable.toml", "cable.png"] {
+        std::fs::copy(data.join("cutouts").join(f), dir.join("cutouts").join(f)).unwrap();
+    }
+    std::fs::copy(
+        data.join("paper/05-1-triangle.toml"),
+        dir.join("paper/05-1-triangle.toml"),
+    )
+    .unwrap();
+    let spec = DatasetSpec::load(&write(dir, "e.toml", EVERYTHING)).unwrap();
+    assert_eq!(spec.image_count(), 28);
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    run(1, &spec, &a, None);
+    run(2, &spec, &b, None);
+    let (ta, tb) = (read_tree(&a), read_tree(&b));
+    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
+    for (name, bytes) in &ta {
+        assert!(bytes == &tb[name], "{name} differs between 1 and 2 threads");
+    }
+    // The draws reach many kinds, systems and backgrounds.
+    let (_, draws) = csv_rows(&a.join("draws.csv"));
+    let seen = |factor: &str| -> std::collections::BTreeSet<String> {
+        draws
+            .iter()
+            .filter(|d| d[2] == factor)
+            .map(|d| d[3].clone())
+            .collect()
+    };
+    assert!(
+        seen("occluder_kind").len() >= 8,
+        "{:?}",
+        seen("occluder_kind")
+    );
+    assert_eq!(seen("background").len(), 4, "{:?}", seen("background"));
+    let (header, truth) = csv_rows(&a.join("truth.csv"));
+    let col = header.iter().position(|h| h == "marker").unwrap();
+    let systems: std::collections::BTreeSet<&str> = truth.iter().map(|r| r[col].as_str()).collect();
+    assert_eq!(systems.len(), 4, "{systems:?}");
+}

@@ -5,7 +5,7 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use coppertag_synth::{generate_shard, DatasetSpec, GenerateOptions, Shard};
+use coppertag_synth::{generate_shard, DatasetSpec, GenerateOptions, LoadOptions, Shard};
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Args, Debug)]
@@ -13,7 +13,8 @@ use indicatif::{ProgressBar, ProgressStyle};
     coppertag synth datasets/paper/coppertag-distance-z.toml -o runs/coppertag-distance-z\n  \
     coppertag synth datasets/paper/stag-rotated-x.toml -o runs/stag-rotated-x --quick\n  \
     coppertag synth datasets/examples/robustness.toml -o runs/rob --force --timings\n  \
-    coppertag synth datasets/wild/coppertag-wild.toml -o runs/wild-3 --shard 3/16\n\n\
+    coppertag synth datasets/wild/coppertag-wild.toml -o runs/wild-3 --shard 3/16\n  \
+    coppertag synth datasets/wild/fp-photos.toml -o runs/fp-photos --photos build/photos\n\n\
     Writes <dir>/images/*.png, truth.csv, dataset.json and dataset.mcap (see datasets/README.md).\n\
     The directory is built beside <dir> under a hidden name and renamed into place at the end;\n\
     on any error nothing is left behind. Same spec and seed, same bytes.")]
@@ -44,6 +45,12 @@ pub struct SynthArgs {
     #[arg(long, value_name = "K/N", value_parser = parse_shard)]
     pub shard: Option<Shard>,
 
+    /// Read the background photographs from DIR instead of the spec's
+    /// sample.background_dir (e.g. a directory written by
+    /// eval/peers/export_photos.py); the spec must have that key.
+    #[arg(long, value_name = "DIR")]
+    pub photos: Option<PathBuf>,
+
     /// Use this seed instead of the spec's.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -71,7 +78,10 @@ fn ms_per(d: Duration, n: usize) -> f64 {
 
 /// Runs `coppertag synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
-    let mut spec = DatasetSpec::load(&args.spec)?;
+    let load = LoadOptions {
+        photos_dir: args.photos.clone(),
+    };
+    let mut spec = DatasetSpec::load_with(&args.spec, &load)?;
     if let Some(seed) = args.seed {
         spec.set_seed(seed);
     }

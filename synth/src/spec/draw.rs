@@ -558,11 +558,22 @@ impl DatasetSpec {
                 None => None,
                 Some(kinds) => {
                     let kind = kinds[pick(u(M_OCC_KIND), kinds.len())];
-                    d.text(Some(mi), "occluder_kind", kind.name().to_string());
+                    d.text(Some(mi), "occluder_kind", s.kind_name(kind));
                     match kind {
                         OccluderKind::None => {
                             d.num(Some(mi), "occluder_coverage", 0.0);
                             None
+                        }
+                        OccluderKind::File(k) => {
+                            let mut occ_rng = SynthRng::seed_from_u64(derive_seed(
+                                self.seed,
+                                &[scene_no as u64, Stream::Occlusion as u64, *slot as u64],
+                            ));
+                            let turns = occ_rng.random_range(0..4u32);
+                            let occ = s.occluder_patterns[k].quarter_turns(turns);
+                            d.num(Some(mi), "occluder_turn_deg", f64::from(90 * turns));
+                            d.num(Some(mi), "occluder_coverage", occ.coverage());
+                            Some(Arc::new(occ))
                         }
                         OccluderKind::Generated(scenario) => {
                             let cov = s

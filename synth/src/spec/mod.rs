@@ -48,6 +48,15 @@ const MAX_IMAGES: usize = 10_000_000;
 /// Most repeats (`images`) per sweep value and occlusion variant.
 const MAX_REPEAT: usize = 1_000_000;
 
+/// Settings from outside the spec file.
+#[derive(Debug, Clone, Default)]
+pub struct LoadOptions {
+    /// Replaces `sample.background_dir` (photographs exported outside the
+    /// repository, e.g. by `eval/peers/export_photos.py`); an error when
+    /// the spec has no such key.
+    pub photos_dir: Option<PathBuf>,
+}
+
 /// A validated dataset spec.
 #[derive(Debug, Clone)]
 pub struct DatasetSpec {
@@ -89,13 +98,24 @@ impl DatasetSpec {
 
     /// Reads and validates a spec file.
     pub fn load(path: &Path) -> Result<Self> {
+        Self::load_with(path, &LoadOptions::default())
+    }
+
+    /// Reads and validates a spec file, with `options` from the command
+    /// line.
+    pub fn load_with(path: &Path, options: &LoadOptions) -> Result<Self> {
         let text = std::fs::read_to_string(path).map_err(|e| SynthError::io(path, e))?;
-        Self::from_toml(&text, path)
+        Self::from_toml_with(&text, path, options)
     }
 
     /// Validates a spec given as text; `path` names it in errors and
     /// relative paths inside it are relative to its directory.
     pub fn from_toml(text: &str, path: &Path) -> Result<Self> {
+        Self::from_toml_with(text, path, &LoadOptions::default())
+    }
+
+    /// [`DatasetSpec::from_toml`] with `options` from the command line.
+    pub fn from_toml_with(text: &str, path: &Path, options: &LoadOptions) -> Result<Self> {
         let file: schema::SpecFile =
             toml::from_str(text).map_err(|e| toml_error(path, text, &e))?;
         let loc = KeyLocator::new(path, text);
@@ -129,7 +149,13 @@ impl DatasetSpec {
                         ));
                     }
                 }
-                Some(sample::sample(&loc, sf, &rendering, &base_dir)?)
+                Some(sample::sample(
+                    &loc,
+                    sf,
+                    &rendering,
+                    &base_dir,
+                    options.photos_dir.as_deref(),
+                )?)
             }
         };
         let halton = sample.as_ref().map(|_| {

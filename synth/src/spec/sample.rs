@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::error::Result;
 use crate::markers::{MarkerModel, MarkerSystem};
-use crate::occlusion::{Scenario, Style};
+use crate::occlusion::{self, Occlusion, Scenario, Style};
 use crate::scene::Rendering;
 use crate::toml_input::{steps, KeyLocator};
 
@@ -156,17 +156,9 @@ pub enum OccluderKind {
     None,
     /// A generated occlusion of this scenario.
     Generated(Scenario),
-}
-
-impl OccluderKind {
-    /// Name in files.
-    #[must_use]
-    pub fn name(self) -> &'static str {
-        match self {
-            OccluderKind::None => "none",
-            OccluderKind::Generated(s) => s.name(),
-        }
-    }
+    /// Pattern `k` of `occluder_files` (drawn as written, turned by a
+    /// random number of quarter turns).
+    File(usize),
 }
 
 /// The look of a sampled occluder.
@@ -230,8 +222,15 @@ pub struct Sample {
     pub background: Option<Vec<BackgroundChoice>>,
     /// Clutter shapes per megapixel.
     pub clutter_density: Option<Factor>,
-    /// Background image files as written.
+    /// Background photographs: the `background_images` as written, then
+    /// the file names of the `*.png` in `background_dir` (name order).
     pub background_images: Vec<PathBuf>,
+    /// The photo directory as written in the spec (`--photos` may have
+    /// replaced it; the digests say which photographs were used).
+    pub background_dir: Option<PathBuf>,
+    /// FNV-1a 64 digest of each photograph's size and grey pixels, so
+    /// `dataset.json` identifies the photographs wherever they were read.
+    pub background_digests: Vec<String>,
     /// Background photographs, grey, full size.
     #[serde(skip)]
     pub background_sources: Vec<Arc<image::GrayImage>>,
@@ -255,6 +254,12 @@ pub struct Sample {
     pub distortion_k1: Option<Factor>,
     /// Occluder kinds.
     pub occluder_kind: Option<Vec<OccluderKind>>,
+    /// Pattern files whose patterns are occluder kinds (named by the
+    /// pattern's name), as written; a directory is listed file by file.
+    pub occluder_files: Vec<PathBuf>,
+    /// Their patterns, in the same order.
+    #[serde(skip)]
+    pub occluder_patterns: Vec<Arc<Occlusion>>,
     /// Occluder coverage of the marker square.
     pub occluder_coverage: Option<Factor>,
     /// Occluder reflectance (overrides the style's fill).
@@ -321,8 +326,15 @@ impl Reader<'_, '_> {
                 }
             },
         };
+        let values = match &f {
+            Factor::Range(lo, hi) => vec![*lo, *hi],
+            Factor::List(v) => v.clone(),
+        };
+        if values.iter().any(|x| !x.is_finite()) {
+            return Err(err("values must be finite numbers".into()));
+        }
         let (lo, hi) = f.bounds();
-        if !(lo.is_finite() && hi.is_finite() && lo >= min && hi <= max) {
+        if !(lo >= min && hi <= max) {
             return Err(err(format!(
                 "values must lie in {min}..={max} (got {lo}..={hi})"
             )));
@@ -372,12 +384,73 @@ impl Reader<'_, '_> {
     }
 }
 
+/// A built-in occluder kind by name.
 fn occluder_kind(name: &str) -> Option<OccluderKind> {
     if name == "none" {
         return Some(OccluderKind::None);
     }
     let s: Scenario = serde_json::from_value(serde_json::Value::String(name.into())).ok()?;
     (s != Scenario::Custom).then_some(OccluderKind::Generated(s))
+}
+
+/// The built-in occluder kinds, for messages.
+const BUILT_IN_KINDS: &str =
+    "none, triangle, same-side, symmetry, diagonal, inner, stick, cable, flush-tape, blob";
+
+impl Sample {
+    /// Name of an occluder kind in files.
+    #[must_use]
+    pub fn kind_name(&self, kind: OccluderKind) -> String {
+        match kind {
+            OccluderKind::None => "none".into(),
+            OccluderKind::Generated(s) => s.name().into(),
+            OccluderKind::File(k) => self.occluder_patterns[k].name.clone(),
+        }
+    }
+}
+
+/// The patterns of `occluder_files`: (file as shown, pattern).
+fn occluder_files(
+    loc: &KeyLocator,
+    files: &[PathBuf],
+    base_dir: &Path,
+) -> Result<Vec<(PathBuf, Arc<Occlusion>)>> {
+    let mut out: Vec<(PathBuf, Arc<Occlusion>)> = Vec::new();
+    for (i, p) in files.iter().enumerate() {
+        let at = |m: String| {
+            loc.err(
+                steps!["sample", "occluder_files", i],
+                format!("sample.occluder_files: {m}"),
+            )
+        };
+        let full = base_dir.join(p);
+        let found = occlusion::pattern_files(&full).map_err(|e| at(e.to_string()))?;
+        for f in found {
+            // Errors inside a pattern file name that file, line and column.
+            let occ = Occlusion::load(&f)?;
+            if occluder_kind(&occ.name).is_some() || occ.name == "custom" {
+                return Err(at(format!(
+                    "{}: pattern name '{}' is a built-in occluder kind; give the pattern another name",
+                    f.display(),
+                    occ.name
+                )));
+            }
+            if out.iter().any(|(_, o)| o.name == occ.name) {
+                return Err(at(format!(
+                    "{}: a second pattern named '{}'",
+                    f.display(),
+                    occ.name
+                )));
+            }
+            let shown = if full.is_dir() {
+                p.join(f.file_name().unwrap_or_default())
+            } else {
+                p.clone()
+            };
+            out.push((shown, Arc::new(occ)));
+        }
+    }
+    Ok(out)
 }
 
 fn occluder_style(name: &str) -> Option<OccluderStyle> {
@@ -389,12 +462,56 @@ fn occluder_style(name: &str) -> Option<OccluderStyle> {
         .map(OccluderStyle::Style)
 }
 
+/// A photograph as grey levels; `Err` says why it cannot be used.
+fn load_photo(path: &Path) -> std::result::Result<image::GrayImage, String> {
+    let img = image::open(path).map_err(|e| e.to_string())?.to_luma8();
+    if img.width() < MIN_PHOTO_SIDE_PX || img.height() < MIN_PHOTO_SIDE_PX {
+        return Err(format!("smaller than {MIN_PHOTO_SIDE_PX} px"));
+    }
+    Ok(img)
+}
+
+/// The `*.png` files of a photo directory, in file-name order.
+fn photo_files(dir: &Path) -> std::result::Result<Vec<PathBuf>, String> {
+    if !dir.is_dir() {
+        return Err(format!(
+            "no such directory (write the photographs with `python eval/peers/export_photos.py {}`, or give --photos DIR)",
+            dir.display()
+        ));
+    }
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| e.to_string())?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|e| e == "png") && p.is_file())
+        .collect();
+    files.sort();
+    if files.is_empty() {
+        return Err("no *.png photographs in this directory".into());
+    }
+    Ok(files)
+}
+
+/// FNV-1a (Fowler, Noll, Vo), 64 bits, over the width, height and grey
+/// levels of a photograph, as 16 hex digits.
+fn photo_digest(img: &image::GrayImage) -> String {
+    const OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
+    const PRIME: u64 = 0x0000_0100_0000_01b3;
+    let mut h = OFFSET;
+    let size = [img.width().to_le_bytes(), img.height().to_le_bytes()];
+    for b in size.iter().flatten().chain(img.as_raw().iter()) {
+        h ^= u64::from(*b);
+        h = h.wrapping_mul(PRIME);
+    }
+    format!("{h:016x}")
+}
+
 /// The validated `[sample]` of a spec whose base settings are `base`.
 pub(super) fn sample(
     loc: &KeyLocator,
     sf: &SampleFile,
     base: &Rendering,
     base_dir: &Path,
+    photos_dir: Option<&Path>,
 ) -> Result<Sample> {
     let r = Reader { loc };
     let at = |key: &str, m: String| loc.err(steps!["sample", key], format!("sample.{key}: {m}"));
@@ -502,45 +619,109 @@ pub(super) fn sample(
     let wants_images = background
         .as_ref()
         .is_some_and(|b| b.contains(&BackgroundChoice::Image));
-    if wants_images && sf.background_images.is_empty() {
-        return Err(at("background", "\"image\" needs background_images".into()));
+    for (key, empty) in [
+        (
+            "background_images",
+            sf.background_images.as_ref().is_some_and(Vec::is_empty),
+        ),
+        (
+            "occluder_files",
+            sf.occluder_files.as_ref().is_some_and(Vec::is_empty),
+        ),
+    ] {
+        if empty {
+            return Err(at(key, "an empty list (leave the key out)".into()));
+        }
     }
-    let mut background_sources = Vec::new();
-    for (i, p) in sf.background_images.iter().enumerate() {
+    let mut photos = Vec::new();
+    for (i, p) in sf.background_images.iter().flatten().enumerate() {
         let full = base_dir.join(p);
-        let img = image::open(&full)
-            .map(|i| i.to_luma8())
-            .map_err(|e| e.to_string())
-            .and_then(|img| {
-                if img.width() < MIN_PHOTO_SIDE_PX || img.height() < MIN_PHOTO_SIDE_PX {
-                    Err(format!("smaller than {MIN_PHOTO_SIDE_PX} px"))
-                } else {
-                    Ok(img)
-                }
-            })
-            .map_err(|e| {
-                loc.err(
-                    steps!["sample", "background_images", i],
-                    format!("sample.background_images: {}: {e}", full.display()),
-                )
-            })?;
-        background_sources.push(Arc::new(img));
+        let img = load_photo(&full).map_err(|e| {
+            loc.err(
+                steps!["sample", "background_images", i],
+                format!("sample.background_images: {}: {e}", full.display()),
+            )
+        })?;
+        photos.push((p.clone(), img));
+    }
+    if photos_dir.is_some() && sf.background_dir.is_none() {
+        return Err(loc.err(
+            steps!["sample"],
+            "--photos replaces sample.background_dir, which this spec does not have".into(),
+        ));
+    }
+    if let Some(written) = &sf.background_dir {
+        let dir = photos_dir.map_or_else(|| base_dir.join(written), Path::to_path_buf);
+        let at_dir = |m: String| {
+            loc.err(
+                steps!["sample", "background_dir"],
+                format!("sample.background_dir: {}: {m}", dir.display()),
+            )
+        };
+        let files = photo_files(&dir).map_err(|m| {
+            let from = if photos_dir.is_some() {
+                " (the --photos directory)"
+            } else {
+                ""
+            };
+            at_dir(format!("{m}{from}"))
+        })?;
+        for f in files {
+            let img = load_photo(&f).map_err(|e| at_dir(format!("{}: {e}", f.display())))?;
+            let name = f.file_name().map(PathBuf::from).unwrap_or_default();
+            photos.push((name, img));
+        }
+    }
+    if wants_images && photos.is_empty() {
+        return Err(at(
+            "background",
+            "\"image\" needs background_images or background_dir".into(),
+        ));
+    }
+    let background_digests = photos.iter().map(|(_, img)| photo_digest(img)).collect();
+    let (background_images, background_sources): (Vec<PathBuf>, Vec<Arc<image::GrayImage>>) =
+        photos.into_iter().map(|(n, i)| (n, Arc::new(i))).unzip();
+    let (occluder_files, occluder_patterns): (Vec<PathBuf>, Vec<Arc<Occlusion>>) = occluder_files(
+        loc,
+        sf.occluder_files.as_deref().unwrap_or_default(),
+        base_dir,
+    )?
+    .into_iter()
+    .unzip();
+    let mut allowed = BUILT_IN_KINDS.to_string();
+    for p in &occluder_patterns {
+        allowed.push_str(", ");
+        allowed.push_str(&p.name);
     }
     let occluder_kind = r.choices(
         "occluder_kind",
         sf.occluder_kind.as_ref(),
-        occluder_kind,
-        "none, triangle, same-side, symmetry, diagonal, inner, stick, cable, flush-tape, blob",
+        |n| {
+            occluder_kind(n).or_else(|| {
+                occluder_patterns
+                    .iter()
+                    .position(|p| p.name == n)
+                    .map(OccluderKind::File)
+            })
+        },
+        &allowed,
     )?;
+    if !occluder_patterns.is_empty() && occluder_kind.is_none() {
+        return Err(at(
+            "occluder_files",
+            "the patterns are used through occluder_kind, which is missing".into(),
+        ));
+    }
     let occluder_coverage = r.factor(
         "occluder_coverage",
         sf.occluder_coverage.as_ref(),
         0.0,
         crate::floor_occluders::MAX_FLOOR_COVERAGE,
     )?;
+    // Only generated occluders are sized to the drawn coverage.
     let occludes = occluder_kind
         .as_ref()
-        .is_some_and(|k| k.iter().any(|k| *k != OccluderKind::None));
+        .is_some_and(|k| k.iter().any(|k| matches!(k, OccluderKind::Generated(_))));
     if occludes {
         match &occluder_coverage {
             None => {
@@ -589,7 +770,9 @@ pub(super) fn sample(
             0.0,
             20_000.0,
         )?,
-        background_images: sf.background_images.clone(),
+        background_images,
+        background_dir: sf.background_dir.clone(),
+        background_digests,
         background_sources,
         gradient: r.factor("gradient", sf.gradient.as_ref(), 0.0, 1.0)?,
         shadow_darkness: r.factor("shadow_darkness", sf.shadow_darkness.as_ref(), 0.0, 1.0)?,
@@ -606,6 +789,8 @@ pub(super) fn sample(
         jpeg_quality: r.factor("jpeg_quality", sf.jpeg_quality.as_ref(), 1.0, 100.0)?,
         distortion_k1: r.factor("distortion_k1", sf.distortion_k1.as_ref(), -0.5, 0.5)?,
         occluder_kind,
+        occluder_files,
+        occluder_patterns,
         occluder_coverage,
         occluder_fill: r.factor("occluder_fill", sf.occluder_fill.as_ref(), 0.0, 1.0)?,
         occluder_style: r.choices(

@@ -240,8 +240,8 @@ pub(super) struct SampleFile {
     pub contrast: Option<toml::Value>,
     pub background: Option<toml::Value>,
     pub clutter_density: Option<toml::Value>,
-    #[serde(default)]
-    pub background_images: Vec<PathBuf>,
+    pub background_images: Option<Vec<PathBuf>>,
+    pub background_dir: Option<PathBuf>,
     pub gradient: Option<toml::Value>,
     pub shadow_darkness: Option<toml::Value>,
     pub glare_peak: Option<toml::Value>,
@@ -252,6 +252,7 @@ pub(super) struct SampleFile {
     pub jpeg_quality: Option<toml::Value>,
     pub distortion_k1: Option<toml::Value>,
     pub occluder_kind: Option<toml::Value>,
+    pub occluder_files: Option<Vec<PathBuf>>,
     pub occluder_coverage: Option<toml::Value>,
     pub occluder_fill: Option<toml::Value>,
     pub occluder_style: Option<toml::Value>,
