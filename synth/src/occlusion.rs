@@ -980,7 +980,11 @@ pub fn max_coverage(scenario: Scenario) -> f64 {
         Scenario::Diagonal => 0.7,
         Scenario::SameSide => 0.9,
         Scenario::Symmetry => 0.6,
-        Scenario::Inner => 0.4,
+        // A blob inside the inner box (0.75 x 0.75 of the square, less a
+        // margin) covers at most about 60% of its bounding box: at 0.37
+        // some seeds find no blob in 200 attempts, at 0.35 none of 2000
+        // seeds failed (measured), so 0.35 is the limit.
+        Scenario::Inner => 0.35,
         Scenario::Custom => 0.0,
         Scenario::Stick | Scenario::Cable | Scenario::FlushTape | Scenario::Blob => {
             crate::floor_occluders::MAX_FLOOR_COVERAGE

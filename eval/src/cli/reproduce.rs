@@ -16,7 +16,7 @@ use coppertag_eval::resources;
 use coppertag_eval::runlog;
 use coppertag_eval::runner::{self, DetectorSpec};
 use coppertag_eval::truth::Dataset;
-use coppertag_synth::{generate, DatasetSpec, GenerateOptions};
+use coppertag_synth::{generate, DatasetSpec, GenerateOptions, LoadOptions};
 
 use super::evaluate::{evaluate_all, evaluate_wild, load_all, write_summaries, write_wild};
 use super::progress::bar;
@@ -29,7 +29,9 @@ use super::report::preamble;
     Spec files are datasets/<dir>/<marker>-<name>.toml; <marker> (coppertag, apriltag3, aruco3, stag)\n\
     picks the detector that runs on the dataset. Specs in --wild (default datasets/wild, skipped when\n\
     absent) without a marker prefix are run by every detector; the wild runs make the report's wild\n\
-    section (rough detections, pose error, jitter, false positives per MP, factor curves).")]
+    section (rough detections, pose error, jitter, false positives per MP, factor curves). Wild specs\n\
+    with sample.background_dir (the natural-photo false-positive set) read the photographs that\n\
+    eval/peers/export_photos.py writes into <work>/photos first.")]
 pub struct ReproduceArgs {
     /// A tenth of every set: every 10th image of a sweep; of a sampled
     /// (wild) spec, its first tenth of scenes with all their renders (an
@@ -71,6 +73,38 @@ pub struct ReproduceArgs {
     /// No progress bars.
     #[arg(long, short)]
     pub quiet: bool,
+}
+
+/// Whether a spec file sets `sample.background_dir` (photographs exported
+/// by `eval/peers/export_photos.py`): a line of the file starting with the
+/// key. A wrong guess is caught by the spec loader, which rejects a
+/// photos directory for a spec without the key and a missing one for a
+/// spec with it.
+fn wants_photos(spec: &Path) -> bool {
+    std::fs::read_to_string(spec).is_ok_and(|t| {
+        t.lines()
+            .any(|l| l.trim_start().starts_with("background_dir"))
+    })
+}
+
+/// Writes the natural photographs of the false-positive set into `dir`
+/// with the peers' Python (scikit-image ships them; the version is pinned
+/// in eval/peers/requirements.txt).
+fn export_photos(args: &ReproduceArgs, dir: &Path) -> Result<()> {
+    let script = args.peers.join("export_photos.py");
+    let out = std::process::Command::new(&args.python)
+        .arg(&script)
+        .arg(dir)
+        .output()
+        .with_context(|| format!("cannot run {} {}", args.python.display(), script.display()))?;
+    if !out.status.success() {
+        anyhow::bail!(
+            "{} failed: {}",
+            script.display(),
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    Ok(())
 }
 
 /// Datasets this small are rendered whole even in quick mode.
@@ -150,6 +184,12 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
     let mut wild_runs = Vec::new();
     std::fs::create_dir_all(&args.work)
         .with_context(|| format!("cannot create {}", args.work.display()))?;
+    let photos_dir = args.work.join("photos");
+    let photos = if jobs.iter().any(|j| wants_photos(&j.spec)) {
+        export_photos(args, &photos_dir).map_err(|e| format!("{e:#}"))
+    } else {
+        Ok(())
+    };
     for (i, job) in jobs.iter().enumerate() {
         let spec_path = &job.spec;
         let stem = spec_path
@@ -158,30 +198,41 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
             .unwrap_or_default();
         let label = format!("[{}/{}] {stem}", i + 1, jobs.len());
         let dataset_dir = args.work.join("datasets").join(&stem);
-        let rendered = DatasetSpec::load(spec_path)
-            .map_err(anyhow::Error::from)
-            .and_then(|spec| {
-                // Small sets (the 20 occlusion images) are kept whole in quick
-                // mode: a tenth of them says nothing.
-                let every = if spec.image_count() <= QUICK_KEEP_WHOLE {
-                    1
-                } else {
-                    every
-                };
-                let pb = bar(
-                    spec.thinned_indices(every).len(),
-                    &format!("{label} render"),
-                    args.quiet,
-                );
-                let r = generate(
-                    &spec,
-                    &dataset_dir,
-                    &GenerateOptions { every, force: true },
-                    &|done, _| pb.set_position(done as u64),
-                );
-                pb.finish_and_clear();
-                r.map_err(anyhow::Error::from)
-            });
+        let rendered = if wants_photos(spec_path) {
+            photos.clone().map_err(anyhow::Error::msg).and_then(|()| {
+                DatasetSpec::load_with(
+                    spec_path,
+                    &LoadOptions {
+                        photos_dir: Some(photos_dir.clone()),
+                    },
+                )
+                .map_err(anyhow::Error::from)
+            })
+        } else {
+            DatasetSpec::load(spec_path).map_err(anyhow::Error::from)
+        };
+        let rendered = rendered.and_then(|spec| {
+            // Small sets (the 20 occlusion images) are kept whole in quick
+            // mode: a tenth of them says nothing.
+            let every = if spec.image_count() <= QUICK_KEEP_WHOLE {
+                1
+            } else {
+                every
+            };
+            let pb = bar(
+                spec.thinned_indices(every).len(),
+                &format!("{label} render"),
+                args.quiet,
+            );
+            let r = generate(
+                &spec,
+                &dataset_dir,
+                &GenerateOptions { every, force: true },
+                &|done, _| pb.set_position(done as u64),
+            );
+            pb.finish_and_clear();
+            r.map_err(anyhow::Error::from)
+        });
         if let Err(e) = rendered {
             failures.push(format!("{}: {e:#}", spec_path.display()));
             continue;

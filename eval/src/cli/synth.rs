@@ -26,8 +26,10 @@ pub struct SynthArgs {
     #[arg(short, long)]
     pub output: PathBuf,
 
-    /// Render only every Nth image (image names and indices stay those of
-    /// the full dataset).
+    /// Render only one in N images (image names and indices stay those of
+    /// the full dataset): every Nth image of a sweep; of a sampled spec,
+    /// its first 1/N of scenes with all their renders (a Halton prefix
+    /// keeps the spread of every factor).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     pub every: u64,
 
@@ -90,8 +92,9 @@ pub fn run(args: &SynthArgs) -> Result<()> {
         every,
         force: args.force,
     };
-    let total = (0..spec.image_count())
-        .step_by(every)
+    let total = spec
+        .thinned_indices(every)
+        .into_iter()
         .filter(|&i| args.shard.is_none_or(|sh| sh.contains(i)))
         .count();
     let bar = if args.quiet {
