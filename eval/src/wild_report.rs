@@ -73,6 +73,7 @@ fn curve_figure(c: &FactorCurve, dir: &Path, out: &mut String) -> Result<()> {
     }
     let stem = format!("wild-{}", c.factor);
     let what = describe(&c.factor);
+    let reading = curve_reading(c);
     line_chart(
         &dir.join(&stem),
         &Chart {
@@ -86,11 +87,76 @@ fn curve_figure(c: &FactorCurve, dir: &Path, out: &mut String) -> Result<()> {
     let _ = writeln!(
         out,
         "### {}\n\n![{stem}]({stem}.png)\n\nThe share of markers each system found (correct or rough) against the \
-         {what}, one point per bin (bins hold about equally many markers; see `wild-factors.csv` for the \
-         bins, counts and the rough share).\n",
+         {what}, one point per bin (bins hold about equally many markers; SVG beside it, bins, counts and \
+         the rough share in `wild-factors.csv`). {reading}\n",
         c.factor
     );
     Ok(())
+}
+
+/// One sentence on what a curve shows: each system's rate in the lowest
+/// and the highest bin of the factor.
+fn curve_reading(c: &FactorCurve) -> String {
+    let Some(bins) = &c.bins else {
+        return String::new();
+    };
+    let mut parts = Vec::new();
+    let mut systems: Vec<&str> = Vec::new();
+    for p in &c.points {
+        if !systems.contains(&p.system.as_str()) {
+            systems.push(&p.system);
+        }
+    }
+    for sys in systems {
+        let pts: Vec<_> = c
+            .points
+            .iter()
+            .filter(|p| p.system == sys && p.markers > 0)
+            .collect();
+        if let (Some(first), Some(last)) = (pts.first(), pts.last()) {
+            parts.push(format!(
+                "{} {} -> {}",
+                display(sys),
+                pct(first.rate()),
+                pct(last.rate())
+            ));
+        }
+    }
+    if parts.is_empty() || bins.len() < 2 {
+        return String::new();
+    }
+    let (lo, _) = bins.range(0);
+    let (_, hi) = bins.range(bins.len() - 1);
+    format!(
+        "From the lowest bin (from {}) to the highest (to {}): {}.",
+        short(lo),
+        short(hi),
+        parts.join(", ")
+    )
+}
+
+fn short(v: f64) -> String {
+    if v.abs() >= 100.0 || v == v.trunc() {
+        format!("{v:.0}")
+    } else if v.abs() >= 1.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// False positives per megapixel, all tag-free sets and each.
+fn fp_cell(r: &crate::wild_summary::SystemRow) -> String {
+    let all = num(r.false_positives_per_mp, 3);
+    if r.false_positives_per_mp_by_set.len() < 2 {
+        return all;
+    }
+    let each: Vec<String> = r
+        .false_positives_per_mp_by_set
+        .iter()
+        .map(|(k, v)| format!("{k} {v:.3}"))
+        .collect();
+    format!("{all} ({})", each.join(", "))
 }
 
 fn category_table(c: &FactorCurve, out: &mut String) {
@@ -152,7 +218,10 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
          Jitter is the median, over scenes rendered several times with fresh sensor noise (at least \
          {JITTER_MIN_RENDERS} renders found), of the spread of the corners (px, RMS over the four), of the \
          translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
-         images. Minimum size: the smallest bin of the marker's side in pixels with at least {:.0}% found.\n",
+         images. Minimum size: the smallest bin of the marker's side in pixels with at least {:.0}% found. \
+         Every system runs with its library's default settings, as in the sets above (a new user's first \
+         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search, which costs \
+         markers under about 40 px).\n",
         if w.datasets.is_empty() {
             "none".into()
         } else {
@@ -161,32 +230,36 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         100.0 * MIN_DETECTABLE_RATE
     );
     out.push_str(
-        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg | time median / p95 (ms) | min. size (px) |\n\
+        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 (ms) | min. size (px) |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &w.systems {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} | {:.2} / {:.2} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} | {} |",
             display(&r.system),
             r.markers,
             pct(r.detection_rate),
             pct(r.rough_rate),
             r.wrong_ids,
-            num(r.false_positives_per_mp, 3),
+            fp_cell(r),
             r.translation_mm.median,
             r.translation_mm.p95,
             r.translation_pct.median,
+            r.translation_pct.p95,
             r.rotation_deg.median,
             r.rotation_deg.p95,
             pct(r.flipped_rate),
             num(r.jitter_corner_px, 3),
             num(r.jitter_translation_mm, 2),
             num(r.jitter_rotation_deg, 3),
+            r.jitter_groups,
             r.time_ms.median,
             r.time_ms.p95,
             r.min_detectable_side_px
-                .map_or("-".into(), |(lo, hi)| format!("{lo:.0}-{hi:.0}"))
+                .map_or(format!("no bin >= {:.0}%", 100.0 * MIN_DETECTABLE_RATE), |(lo, hi)| {
+                    format!("{lo:.0}-{hi:.0}")
+                })
         );
     }
     out.push_str(

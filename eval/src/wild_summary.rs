@@ -64,6 +64,10 @@ pub struct SystemRow {
     pub tag_free_false_positives: usize,
     /// Those per megapixel; `None` without a tag-free set.
     pub false_positives_per_mp: Option<f64>,
+    /// False positives per megapixel of each tag-free set, by dataset
+    /// (procedural clutter and natural photographs differ).
+    #[serde(default)]
+    pub false_positives_per_mp_by_set: BTreeMap<String, f64>,
     /// Translation error, mm, over found markers with a pose.
     pub translation_mm: Stats,
     /// Translation error, % of the true distance.
@@ -313,6 +317,18 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             tag_free_megapixels: mp_free,
             tag_free_false_positives: fp_free,
             false_positives_per_mp: (mp_free > 0.0).then(|| fp_free as f64 / mp_free),
+            false_positives_per_mp_by_set: {
+                let mut by: BTreeMap<String, (usize, f64)> = BTreeMap::new();
+                for r in &free {
+                    let e = by.entry(r.dataset.clone()).or_default();
+                    e.0 += r.false_positives;
+                    e.1 += r.megapixels;
+                }
+                by.into_iter()
+                    .filter(|(_, (_, mp))| *mp > 0.0)
+                    .map(|(k, (n, mp))| (k, n as f64 / mp))
+                    .collect()
+            },
             translation_mm: pick(|p| p.translation_mm),
             translation_pct: pick(|p| p.translation_pct),
             rotation_deg: pick(|p| p.rotation_deg),
@@ -427,11 +443,11 @@ impl WildSummary {
              pose_n,translation_median_mm,translation_p95_mm,translation_median_pct,translation_p95_pct,\
              rotation_median_deg,rotation_p95_deg,flipped_rate,jitter_groups,jitter_corner_px,\
              jitter_translation_mm,jitter_rotation_deg,time_median_ms,time_p95_ms,min_detectable_side_lo_px,\
-             min_detectable_side_hi_px\n",
+             min_detectable_side_hi_px,false_positives_per_mp_by_set\n",
         );
         for r in &self.systems {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{}\n",
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{},\"{}\"\n",
                 r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
                 r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
                 r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
@@ -439,7 +455,12 @@ impl WildSummary {
                 r.rotation_deg.median, r.rotation_deg.p95, r.flipped_rate, r.jitter_groups,
                 opt(r.jitter_corner_px, 6), opt(r.jitter_translation_mm, 6), opt(r.jitter_rotation_deg, 6),
                 r.time_ms.median, r.time_ms.p95,
-                opt(r.min_detectable_side_px.map(|m| m.0), 3), opt(r.min_detectable_side_px.map(|m| m.1), 3)
+                opt(r.min_detectable_side_px.map(|m| m.0), 3), opt(r.min_detectable_side_px.map(|m| m.1), 3),
+                r.false_positives_per_mp_by_set
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(";")
             ));
         }
         s
