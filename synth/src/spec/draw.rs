@@ -599,7 +599,11 @@ impl DatasetSpec {
                                 None if scenario == Scenario::FlushTape => ink,
                                 None => Style::Solid.appearance(),
                             };
-                            if let Some(f) = &s.occluder_fill {
+                            // "ink" means as dark as the print's ink:
+                            // the drawn fill is for the other looks.
+                            if let (Some(f), false) =
+                                (&s.occluder_fill, style == Some(OccluderStyle::Ink))
+                            {
                                 appearance.fill = f.at(u(M_OCC_FILL));
                             }
                             if let Some(st) = style {
