@@ -555,3 +555,50 @@ fn every_factor_and_occluder_kind_gives_the_same_bytes_on_1_and_2_threads() {
     let systems: std::collections::BTreeSet<&str> = truth.iter().map(|r| r[col].as_str()).collect();
     assert_eq!(systems.len(), 4, "{systems:?}");
 }
+
+#[test]
+fn ink_occluders_stay_as_dark_as_the_ink() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = r#"
+seed = 8
+[camera]
+width = 200
+height = 150
+fx = 200.0
+[print]
+ink = 0.06
+paper = 0.9
+[sample]
+markers = [{ system = "coppertag", family = "ct14" }]
+count = 6
+square_m = 0.05
+side_px = [30, 40]
+occluder_kind = ["flush-tape", "stick"]
+occluder_coverage = [0.05, 0.3]
+occluder_style = ["ink", "tape"]
+occluder_fill = [0.5, 0.9]
+"#;
+    let spec = DatasetSpec::load(&write(tmp.path(), "i.toml", text)).unwrap();
+    let out = tmp.path().join("i");
+    generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
+    let (_, draws) = csv_rows(&out.join("draws.csv"));
+    let value = |image: &str, marker: &str, factor: &str| {
+        draws
+            .iter()
+            .find(|d| d[0] == image && d[1] == marker && d[2] == factor)
+            .map(|d| d[3].clone())
+            .unwrap()
+    };
+    let (mut ink, mut tape) = (0, 0);
+    for d in draws.iter().filter(|d| d[2] == "occluder_style") {
+        let fill: f64 = value(&d[0], &d[1], "occluder_fill").parse().unwrap();
+        if d[3] == "ink" {
+            assert_eq!(fill, 0.06, "image {}", d[0]);
+            ink += 1;
+        } else {
+            assert!((0.5..=0.9).contains(&fill), "image {}: {fill}", d[0]);
+            tape += 1;
+        }
+    }
+    assert!(ink > 0 && tape > 0, "{ink} ink, {tape} tape");
+}

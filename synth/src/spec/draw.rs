@@ -414,10 +414,14 @@ impl DatasetSpec {
                 let off = d.u(D_SHADOW_OFFSET);
                 let a = 2.0 * PI * d.u(D_SHADOW_ANGLE);
                 let p = [off * (w - 1.0), off * (h - 1.0)];
+                // The polygon is the side of the line through p at angle a
+                // towards its normal (-sin a, cos a).
+                let n = [-a.sin(), a.cos()];
                 r.lighting.shadows.push(Shadow {
                     polygon: half_plane(p, a, w, h),
                     darkness: dark,
                     softness_px: rng.random_range(SHADOW_SOFTNESS_PX.0..SHADOW_SOFTNESS_PX.1),
+                    half_plane: Some([n[0], n[1], n[0] * p[0] + n[1] * p[1]]),
                 });
             }
         }
@@ -599,7 +603,11 @@ impl DatasetSpec {
                                 None if scenario == Scenario::FlushTape => ink,
                                 None => Style::Solid.appearance(),
                             };
-                            if let Some(f) = &s.occluder_fill {
+                            // "ink" means as dark as the print's ink:
+                            // the drawn fill is for the other looks.
+                            if let (Some(f), false) =
+                                (&s.occluder_fill, style == Some(OccluderStyle::Ink))
+                            {
                                 appearance.fill = f.at(u(M_OCC_FILL));
                             }
                             if let Some(st) = style {

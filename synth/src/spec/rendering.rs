@@ -96,6 +96,7 @@ fn lighting(loc: &KeyLocator, lf: &LightingFile) -> Result<Lighting> {
                 polygon: s.polygon.clone(),
                 darkness: s.darkness,
                 softness_px: s.softness_px,
+                half_plane: None,
             })
             .collect(),
         glares: Vec::new(),

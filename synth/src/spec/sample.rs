@@ -262,7 +262,8 @@ pub struct Sample {
     pub occluder_patterns: Vec<Arc<Occlusion>>,
     /// Occluder coverage of the marker square.
     pub occluder_coverage: Option<Factor>,
-    /// Occluder reflectance (overrides the style's fill).
+    /// Occluder reflectance (overrides the style's fill, except for
+    /// [`OccluderStyle::Ink`], which stays at the print's ink).
     pub occluder_fill: Option<Factor>,
     /// Occluder looks.
     pub occluder_style: Option<Vec<OccluderStyle>>,
