@@ -8,7 +8,8 @@
 //! all white, and it tells how far each cell is from the threshold, so that
 //! doubtful cells become Reed-Solomon erasures instead of errors.
 
-use image::GrayImage;
+use crate::math::sample_bilinear;
+use crate::view::GrayView;
 
 use crate::family::Family;
 use crate::geometry::{B, CORNERS};
@@ -30,28 +31,6 @@ pub struct QuadReading {
     pub contrast: f64,
 }
 
-/// Bilinear sample of an 8-bit image at a pixel-centre coordinate; `None`
-/// outside the image.
-#[inline]
-pub fn sample_bilinear(img: &GrayImage, x: f64, y: f64) -> Option<f64> {
-    let (w, h) = img.dimensions();
-    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
-        return None;
-    }
-    // x, y >= 0 here, so truncation is floor.
-    let x0 = (x as u32).min(w.saturating_sub(2));
-    let y0 = (y as u32).min(h.saturating_sub(2));
-    let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
-    let x1 = (x0 + 1).min(w - 1) as usize;
-    let y1 = (y0 + 1).min(h - 1) as usize;
-    let (x0, y0, w) = (x0 as usize, y0 as usize, w as usize);
-    let raw = img.as_raw();
-    let p = |x: usize, y: usize| f64::from(raw[y * w + x]);
-    let top = p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx;
-    let bot = p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx;
-    Some(top * (1.0 - fy) + bot * fy)
-}
-
 fn median(v: &mut [f64]) -> Option<f64> {
     if v.is_empty() {
         return None;
@@ -61,6 +40,10 @@ fn median(v: &mut [f64]) -> Option<f64> {
     Some(v[mid])
 }
 
+/// Offset of the outer samples of a cell from its centre, in cells: the
+/// 3 x 3 samples span the central half of the cell.
+const SAMPLE_SPREAD: f64 = 0.25;
+
 /// Samples taken from a quad: one darkness-agnostic grey value per cell plus
 /// the tag's own black and white levels.
 struct GridSamples {
@@ -69,7 +52,7 @@ struct GridSamples {
     white: f64,
 }
 
-fn sample_grid(img: &GrayImage, n: usize, h: &Homography) -> Option<GridSamples> {
+fn sample_grid(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<GridSamples> {
     let step = 1.0 / (n as f64 + 2.0);
     let at = |u: f64, v: f64| -> Option<f64> {
         let p = h.map([u, v])?;
@@ -77,7 +60,7 @@ fn sample_grid(img: &GrayImage, n: usize, h: &Homography) -> Option<GridSamples>
     };
     // Each cell averages a 3 x 3 pattern over its central half: blur and
     // noise average out while neighbouring cells stay out.
-    let offs = [-0.25 * step, 0.0, 0.25 * step];
+    let offs = [-SAMPLE_SPREAD * step, 0.0, SAMPLE_SPREAD * step];
     let mut cells = Vec::with_capacity(n * n);
     for i in 0..n {
         for j in 0..n {
@@ -118,34 +101,65 @@ fn sample_grid(img: &GrayImage, n: usize, h: &Homography) -> Option<GridSamples>
     })
 }
 
+/// Thresholds of the decoder, in grey levels of the 8-bit image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeParams {
+    /// Smallest difference between the tag's measured white (data-square
+    /// margin) and black (frame) levels, grey levels: below it the quad is
+    /// noise, not a tag. Default 4.
+    pub min_contrast: f64,
+    /// Second reading: cells whose grey value is within this fraction of
+    /// the contrast from the threshold are erased, not guessed (Reed-Solomon
+    /// corrects twice as many erasures as errors). Default 0.2.
+    pub erase_fraction: f64,
+}
+
+impl Default for DecodeParams {
+    fn default() -> Self {
+        Self {
+            min_contrast: 4.0,
+            erase_fraction: 0.2,
+        }
+    }
+}
+
 /// Reads a tag of `family` whose data-square corners are `corners`, given in
 /// the order TL, BL, BR, TR up to a rotation (any of the four cyclic shifts
 /// of that order). Returns `None` when nothing decodes unambiguously.
 ///
 /// The corners returned are the same points reordered so that corner 0 is
-/// the tag's physical top-left corner.
-pub fn decode_quad(
-    img: &GrayImage,
+/// the tag's physical top-left corner. `img` is an `&image::GrayImage` or a
+/// [`GrayView`] of a borrowed buffer.
+pub fn decode_quad<'a>(
+    img: impl Into<GrayView<'a>>,
     family: &Family,
     corners: &[[f64; 2]; 4],
+) -> Option<QuadReading> {
+    decode_quad_with(&img.into(), family, corners, &DecodeParams::default())
+}
+
+/// [`decode_quad`] with explicit thresholds.
+pub fn decode_quad_with(
+    img: &GrayView<'_>,
+    family: &Family,
+    corners: &[[f64; 2]; 4],
+    params: &DecodeParams,
 ) -> Option<QuadReading> {
     let h = Homography::from_points(&CORNERS, corners)?;
     let n = family.grid();
     let s = sample_grid(img, n, &h)?;
     let contrast = s.white - s.black;
-    // Less than ~4 grey levels between paper and ink is noise, not a tag.
-    if contrast < 4.0 {
+    if contrast < params.min_contrast {
         return None;
     }
     let threshold = 0.5 * (s.white + s.black);
     let bits: Vec<bool> = s.cells.iter().map(|&v| v < threshold).collect();
     let reading = decode_cells(family, &bits, &[]).or_else(|| {
-        // Second chance: cells within 20% of the contrast from the threshold
-        // are erased; RS corrects twice as many erasures as errors.
+        // Second chance: doubtful cells are erased.
         let doubtful: Vec<bool> = s
             .cells
             .iter()
-            .map(|&v| (v - threshold).abs() < 0.2 * contrast)
+            .map(|&v| (v - threshold).abs() < params.erase_fraction * contrast)
             .collect();
         doubtful
             .iter()

@@ -72,6 +72,13 @@ pub enum Error {
         /// What is inconsistent.
         reason: String,
     },
+    /// No pose fits the corners given (degenerate or inconsistent with a
+    /// planar square seen by the camera).
+    #[error("pose estimation failed: {reason}")]
+    PoseFailed {
+        /// Why no pose was found.
+        reason: String,
+    },
     /// A configuration or call parameter outside its valid range.
     #[error("invalid parameter {name}: {reason}")]
     InvalidParameter {

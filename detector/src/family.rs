@@ -335,6 +335,43 @@ impl Family {
     }
 }
 
+/// Two families are equal when their definitions are.
+impl PartialEq for Family {
+    fn eq(&self, other: &Self) -> bool {
+        self.spec == other.spec
+    }
+}
+
+/// A family serialises as its name when it is the built-in family of that
+/// name, else as its whole definition ([`FamilySpec`]); both forms
+/// deserialise (a name must be a built-in family's, a definition is
+/// validated with [`Family::from_spec`]). Run logs stay short and any
+/// family a detector was configured with can be rebuilt from them.
+impl Serialize for Family {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match Family::by_name(self.name()) {
+            Ok(b) if b.spec == self.spec => s.serialize_str(self.name()),
+            _ => self.spec.serialize(s),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Family {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        #[derive(Deserialize)]
+        #[serde(untagged)]
+        enum Form {
+            Name(String),
+            Spec(Box<FamilySpec>),
+        }
+        let family = match Form::deserialize(d)? {
+            Form::Name(n) => Family::by_name(&n).cloned(),
+            Form::Spec(spec) => Family::from_spec(*spec),
+        };
+        family.map_err(serde::de::Error::custom)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -49,6 +49,11 @@ impl Homography {
         &self.m
     }
 
+    /// The matrix as rows (row-major), the form it is serialised in.
+    pub fn rows(&self) -> [[f64; 3]; 3] {
+        std::array::from_fn(|i| std::array::from_fn(|j| self.m[(i, j)]))
+    }
+
     /// Maps a point; `None` for points on the line at infinity.
     #[inline]
     pub fn map(&self, p: [f64; 2]) -> Option<[f64; 2]> {
@@ -62,6 +67,13 @@ impl Homography {
     pub fn in_front(&self, p: [f64; 2]) -> bool {
         let m = &self.m;
         m[(2, 0)] * p[0] + m[(2, 1)] * p[1] + m[(2, 2)] > 0.0
+    }
+}
+
+/// Serialised as its matrix, row-major (`[[h11, h12, h13], ...]`).
+impl serde::Serialize for Homography {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        serde::Serialize::serialize(&self.rows(), s)
     }
 }
 

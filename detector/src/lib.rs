@@ -19,10 +19,13 @@ pub mod family;
 pub mod geometry;
 pub mod grid_code;
 pub mod homography;
+mod math;
 pub mod pose;
 pub mod rs;
+pub mod view;
 
-pub use decode::{decode_quad, QuadReading};
-pub use detect::{Detection, DetectionStats, Detector, DetectorConfig, StageTimes};
+pub use decode::{decode_quad, decode_quad_with, DecodeParams, QuadReading};
+pub use detect::{Detection, DetectionStats, Detector, DetectorConfig, FamilySetting, StageTimes};
 pub use error::{Error, Result};
 pub use family::Family;
+pub use view::GrayView;

@@ -63,6 +63,9 @@ pub fn tag_pose(corners: &[[f64; 2]; 4], k: &Intrinsics, tag_side: f64) -> Resul
         name,
         reason: reason.into(),
     };
+    let failed = |reason: &str| Error::PoseFailed {
+        reason: reason.into(),
+    };
     if !(tag_side.is_finite() && tag_side > 0.0) {
         return Err(bad("tag_side", "must be positive"));
     }
@@ -73,7 +76,7 @@ pub fn tag_pose(corners: &[[f64; 2]; 4], k: &Intrinsics, tag_side: f64) -> Resul
     let model = [[-h, -h], [-h, h], [h, h], [h, -h]];
     let norm: [[f64; 2]; 4] = corners.map(|p| [(p[0] - k.cx) / k.fx, (p[1] - k.cy) / k.fy]);
     let hom = Homography::from_points(&model, &norm)
-        .ok_or_else(|| bad("corners", "degenerate quadrilateral"))?;
+        .ok_or_else(|| failed("degenerate quadrilateral (three corners collinear)"))?;
     let mut m = *hom.matrix();
     m /= m[(2, 2)];
     // Image of the model origin and the Jacobian there.
@@ -84,7 +87,7 @@ pub fn tag_pose(corners: &[[f64; 2]; 4], k: &Intrinsics, tag_side: f64) -> Resul
         m[(1, 0)] - m[(2, 0)] * v.y,
         m[(1, 1)] - m[(2, 1)] * v.y,
     );
-    let (r1, r2) = ippe_rotations(&v, &j).ok_or_else(|| bad("corners", "no pose fits"))?;
+    let (r1, r2) = ippe_rotations(&v, &j).ok_or_else(|| failed("no rotation fits the corners"))?;
     let mut poses = [r1, r2].map(|r| {
         let t = translation(&r, &model, &norm);
         let err = reprojection(&r, &t, &model, corners, k);
@@ -98,7 +101,7 @@ pub fn tag_pose(corners: &[[f64; 2]; 4], k: &Intrinsics, tag_side: f64) -> Resul
         poses.swap(0, 1);
     }
     if poses.iter().any(|p| !p.reprojection_px.is_finite()) {
-        return Err(bad("corners", "no finite pose"));
+        return Err(failed("no finite pose"));
     }
     Ok(TagPose {
         best: poses[0],
@@ -249,6 +252,9 @@ mod tests {
         };
         let c = [[0.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, 0.0]];
         assert!(tag_pose(&c, &k, 0.0).is_err());
-        assert!(tag_pose(&[[0.0, 0.0]; 4], &k, 1.0).is_err());
+        assert!(matches!(
+            tag_pose(&[[0.0, 0.0]; 4], &k, 1.0),
+            Err(Error::PoseFailed { .. })
+        ));
     }
 }

@@ -18,7 +18,11 @@ fn check(det: &mut Detector, scene: &Scene, what: &str, errs: &mut Vec<f64>) -> 
         found.len()
     );
     let d = &found[0];
-    assert_eq!((d.family, d.id), (scene.family.name(), scene.id), "{what}");
+    assert_eq!(
+        (d.family.as_str(), d.id),
+        (scene.family.name(), scene.id),
+        "{what}"
+    );
     assert_eq!(d.estimated, [false; 4], "{what}");
     let e = corner_errors(&d.corners, &scene.corners());
     assert!(e.iter().all(|&e| e < 1.0), "{what}: corner errors {e:?}");
@@ -161,10 +165,7 @@ fn ct8_tags() {
         assert!(d.corrected <= 1, "{what}: {d:?}");
     }
     // Only ct14 asked for: a ct8 tag is not reported.
-    let cfg = DetectorConfig {
-        families: vec!["ct14".into()],
-        ..DetectorConfig::default()
-    };
+    let cfg = DetectorConfig::with_builtin_families(&["ct14"]).unwrap();
     let mut only14 = Detector::new(cfg).unwrap();
     let s = paper_scene(Family::ct8(), 4097, 1.0, &rotation(0.0, 0.0, 0.0));
     assert!(only14.detect(&s.render()).is_empty());

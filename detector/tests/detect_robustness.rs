@@ -4,7 +4,7 @@
 mod common;
 
 use common::Rng;
-use coppertag::{Detector, DetectorConfig};
+use coppertag::{Detector, DetectorConfig, FamilySetting};
 use image::GrayImage;
 use proptest::prelude::*;
 
@@ -54,7 +54,7 @@ fn config_is_validated() {
             ..Default::default()
         },
         DetectorConfig {
-            families: vec!["ct99".into()],
+            families: vec![FamilySetting::builtin("ct14").unwrap(); 2],
             ..Default::default()
         },
         DetectorConfig {
@@ -85,6 +85,10 @@ fn config_is_validated() {
     let c = DetectorConfig::default();
     let json = serde_json::to_string(&c).unwrap();
     assert_eq!(serde_json::from_str::<DetectorConfig>(&json).unwrap(), c);
+    // Unknown family names are rejected when the config is read.
+    assert!(DetectorConfig::with_builtin_families(&["ct99"]).is_err());
+    let json = json.replacen("\"ct8\"", "\"ct99\"", 1);
+    assert!(serde_json::from_str::<DetectorConfig>(&json).is_err());
 }
 
 /// 20000 x 20000 (400 MB in, about 200 MB of working buffers).

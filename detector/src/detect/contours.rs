@@ -40,6 +40,19 @@ impl Contours {
     }
 }
 
+/// Longest border stored for a working image of `w` x `h` pixels:
+/// `BORDER_PER_SIZE * (w + h) + BORDER_SLACK` points (twice the image
+/// perimeter, plus slack for tiny images). Longer borders (noise filling
+/// the frame) are followed, so they are marked, but not stored.
+pub(crate) fn max_border_len(w: usize, h: usize) -> usize {
+    BORDER_PER_SIZE * (w + h) + BORDER_SLACK
+}
+
+/// See [`max_border_len`].
+const BORDER_PER_SIZE: usize = 4;
+/// See [`max_border_len`].
+const BORDER_SLACK: usize = 16;
+
 /// Neighbour offsets, index increasing clockwise on screen (y down):
 /// E, SE, S, SW, W, NW, N, NE.
 const DX: [isize; 8] = [1, 1, 0, -1, -1, -1, 0, 1];

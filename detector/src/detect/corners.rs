@@ -9,7 +9,11 @@
 //! the four corners of the white data square, each seen as the meeting of
 //! two sides of the black frame.
 
-use super::lines::{cross, norm, sub, Line, Polygons};
+use super::lines::{Line, Polygons};
+use crate::math::{cross, intersect, norm, sub};
+
+/// A straight piece of a border, start and end point.
+pub(crate) type Segment = [[f64; 2]; 2];
 
 /// A corner: where an incoming line meets an outgoing line.
 #[derive(Debug, Clone, Copy)]
@@ -20,34 +24,30 @@ pub(crate) struct Corner {
     pub din: [f64; 2],
     /// Direction of the outgoing line (leaving the corner).
     pub dout: [f64; 2],
-    /// Index of the incoming line.
-    pub lin: u32,
-    /// Index of the outgoing line.
-    pub lout: u32,
+    /// The incoming line piece, start and end (working-image coordinates):
+    /// the edge seen on the side arriving at the corner.
+    pub seg_in: Segment,
+    /// The outgoing line piece, start and end.
+    pub seg_out: Segment,
     /// Contour the lines came from.
     pub contour: u32,
 }
 
-/// Intersection of the line through `p` with direction `d` and the line
-/// through `q` with direction `e`; `None` when (nearly) parallel.
-#[inline]
-pub(crate) fn intersect(p: [f64; 2], d: [f64; 2], q: [f64; 2], e: [f64; 2]) -> Option<[f64; 2]> {
-    let den = cross(d, e);
-    if den.abs() < 1e-6 * norm(d) * norm(e) {
-        return None;
-    }
-    let t = cross(sub(q, p), e) / den;
-    Some([p[0] + t * d[0], p[1] + t * d[1]])
-}
-
-/// Corner-forming parameters.
+/// Corner-forming parameters, from [`crate::DetectorConfig`].
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct CornerParams {
-    /// Sine of theta, the smallest angle between the two lines.
+    /// Sine of theta, the smallest angle between the two lines (theta is
+    /// `corner_min_angle_deg`); the sine also rejects angles above
+    /// 180 - theta (hairpins).
     pub sin_min_angle: f64,
-    /// psi: largest gap between the facing line ends.
+    /// psi: largest gap between the facing line ends (working px).
     pub max_gap: f64,
 }
+
+/// The intersection of a corner's two lines may lie at most this many times
+/// psi from each facing line end: a shallow intersection far away is not a
+/// corner.
+const REACH_PER_GAP: f64 = 2.0;
 
 fn corner(
     lines: &[Line],
@@ -79,7 +79,7 @@ fn corner(
     let pos = intersect(li.pe, li.dir, lo.ps, lo.dir)?;
     // The corner must be near the facing ends (a shallow intersection far
     // away is not a corner).
-    let reach = 2.0 * params.max_gap;
+    let reach = REACH_PER_GAP * params.max_gap;
     if norm(sub(pos, li.pe)) > reach || norm(sub(pos, lo.ps)) > reach {
         return None;
     }
@@ -87,8 +87,8 @@ fn corner(
         pos,
         din: li.dir,
         dout: lo.dir,
-        lin: lin as u32,
-        lout: lout as u32,
+        seg_in: [li.ps, li.pe],
+        seg_out: [lo.ps, lo.pe],
         contour,
     })
 }

@@ -27,7 +27,8 @@
 //! times smaller).
 
 use super::contours::Contours;
-use super::lines::{cross, dot, norm, sub, Polygons};
+use super::lines::Polygons;
+use crate::math::{cross, dot, fp, norm, sub};
 
 /// A fitted ellipse in working-image coordinates.
 #[derive(Debug, Clone, Copy)]
@@ -46,14 +47,96 @@ pub(crate) struct Ellipse {
     pub checker: bool,
 }
 
-/// Parameters of the ellipse stage.
+/// Largest turn (degrees) towards the dark side at a polygon vertex inside
+/// an arc; sharper turns (square corners) end it.
+const MAX_TURN_DEG: f64 = 80.0;
+
+/// Smallest turn (degrees) towards the dark side inside an arc: straight or
+/// outward junctions end it.
+const MIN_TURN_DEG: f64 = 1.0;
+
+/// A junction turning more than this many times the median turn of its run
+/// (and more than [`OUTLIER_MIN_TURN_DEG`]) ends the run (see
+/// `split_at_outliers`).
+const OUTLIER_TURN_RATIO: f64 = 3.0;
+
+/// Turns below this (degrees) never count as outliers of their run.
+const OUTLIER_MIN_TURN_DEG: f64 = 30.0;
+
+/// Most polygon sides trimmed off the ends of a run that does not fit an
+/// ellipse as a whole.
+const MAX_TRIM: usize = 4;
+
+/// Fewest polygon sides of an arc (and junctions of a run whose median
+/// turn is measured): fewer cannot tell a curve from a corner.
+const MIN_ARC_SIDES: usize = 3;
+
+/// An arc holds at least `min_arc_points / ARC_SHARE` border points.
+const ARC_SHARE: usize = 2;
+
+/// Sectors (of equal angle around the ellipse centre) used to measure how
+/// much of an ellipse an arc covers.
+const SECTORS: usize = 12;
+
+/// An arc must have points in at least this many of the [`SECTORS`]
+/// (4 of 12: a third of the rim).
+const MIN_SECTORS: usize = 4;
+
+/// Smallest ratio of minor to major semi-axis kept (a disc seen at up to
+/// about 78 degrees of tilt).
+const MIN_AXIS_RATIO: f64 = 0.2;
+
+/// Arcs of one ellipse: centres closer than this fraction of the larger
+/// major semi-axis, ...
+const MERGE_CENTRE: f64 = 0.15;
+/// ... major semi-axes within this fraction of the first arc's, ...
+const MERGE_MAJOR: f64 = 0.2;
+/// ... and minor semi-axes within this fraction of the larger one.
+const MERGE_MINOR: f64 = 0.25;
+
+/// Fewest points of a conic fit (five degrees of freedom, plus one).
+const MIN_FIT_POINTS: usize = 6;
+
+/// Numerical guards of the conic fit: point spread (px) and polygon area
+/// below which the points are degenerate, ...
+const MIN_SPREAD: f64 = 1e-9;
+/// ... squared norm of a null eigenvector or gradient, ...
+const NULL_VECTOR: f64 = 1e-30;
+/// ... determinant of a conic without a centre (a parabola), ...
+const SINGULAR_CENTRE: f64 = 1e-15;
+/// ... and coefficient of a depressed cubic with a triple root.
+const TRIPLE_ROOT: f64 = 1e-300;
+
+/// Shortest hole border (points) looked at as the checker's white disc.
+const MIN_CHECKER_POINTS: u32 = 4;
+
+/// Size of the checker's white disc relative to the rim's major axis (its
+/// diameter is about 0.2 S: ct14 1/6 of the data square, ct8 2/15; the
+/// rim's is 1.64 S, so about 0.1).
+const CHECKER_SIZE: std::ops::RangeInclusive<f64> = 0.04..=0.2;
+
+/// Largest distance of the checker disc from the rim's centre, in major
+/// semi-axes (perspective moves the rim's centre off the tag centre).
+const CHECKER_OFFSET: f64 = 0.25;
+
+/// Area of the checker disc against its bounding box (a disc fills pi/4).
+const CHECKER_FILL: std::ops::RangeInclusive<f64> = 0.3..=0.95;
+
+/// The ellipse stage looks at borders at least this many times
+/// `DetectorConfig::min_contour_points` long: a rim is a long border.
+pub(crate) const RIM_BORDER_FACTOR: usize = 2;
+
+/// Parameters of the ellipse stage, built once by [`crate::Detector::new`].
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct EllipseParams {
-    /// Smallest semi-minor axis kept (working px).
+    /// Smallest semi-minor axis kept (working px): smaller rims are too few
+    /// pixels to fit.
     pub min_minor: f64,
-    /// Smallest border length looked at (points).
+    /// Smallest border length looked at (border points); arcs need half
+    /// of it.
     pub min_arc_points: usize,
-    /// Largest RMS distance of a fit (working px).
+    /// Largest RMS (Sampson) distance of the border points from a fitted
+    /// ellipse (working px).
     pub max_rms: f64,
 }
 
@@ -107,8 +190,8 @@ pub(crate) fn find_ellipses(
 ) {
     out.clear();
     scratch.arcs.clear();
-    let max_turn = 80f64.to_radians();
-    let min_turn = 1f64.to_radians();
+    let max_turn = MAX_TURN_DEG.to_radians();
+    let min_turn = MIN_TURN_DEG.to_radians();
     for (ci, c) in contours.list.iter().enumerate() {
         if (c.len as usize) < params.min_arc_points {
             continue;
@@ -118,16 +201,13 @@ pub(crate) fn find_ellipses(
         let (v0, v1) = polys.vertex_ranges[ci];
         let verts = &polys.vertices[v0 as usize..v1 as usize];
         let m = verts.len();
-        if m < 3 {
+        if m < MIN_ARC_SIDES {
             continue;
         }
         // Turning towards the dark side, which is left of the traversal:
         // a negative cross product on screen.
         let sign = -1.0;
-        let vpt = |k: usize| {
-            let p = pts[verts[k % m] as usize];
-            [f64::from(p[0]), f64::from(p[1])]
-        };
+        let vpt = |k: usize| fp(pts[verts[k % m] as usize]);
         // Turn at vertex k, between sides k-1 and k.
         let turn = |k: usize| {
             let a = sub(vpt(k), vpt(k + m - 1));
@@ -174,10 +254,9 @@ pub(crate) fn find_ellipses(
                 // a run may end in a side or two that are not rim. Trim
                 // sides off the ends, the worse-fitting end first, until
                 // the rest fits (at most MAX_TRIM sides).
-                const MAX_TRIM: usize = 4;
                 let (mut a, mut b) = (s, e);
                 let mut trimmed = 0;
-                while b - a >= 3 {
+                while b - a >= MIN_ARC_SIDES {
                     let (i0, i1) = span(a, b);
                     if push_arc(pts, ci as u32, i0, i1, params, scratch) || trimmed == MAX_TRIM {
                         break;
@@ -187,7 +266,7 @@ pub(crate) fn find_ellipses(
                         arc_points(pts, i0, i1, sc);
                         fit_ellipse(&sc.pts).map_or(f64::INFINITY, |f| f.rms)
                     };
-                    if b - a == 3 {
+                    if b - a == MIN_ARC_SIDES {
                         break;
                     }
                     if rms(a + 1, b, scratch) <= rms(a, b - 1, scratch) {
@@ -222,11 +301,12 @@ fn split_at_outliers(jn: &mut Junctions) {
         return;
     };
     let mut flush = |run: &mut Vec<usize>, ok: &mut [bool]| {
-        if run.len() >= 3 {
+        if run.len() >= MIN_ARC_SIDES {
             vals.clear();
             vals.extend(run.iter().map(|&k| turns[k]));
             vals.sort_by(f64::total_cmp);
-            let limit = (3.0 * vals[vals.len() / 2]).max(30f64.to_radians());
+            let limit =
+                (OUTLIER_TURN_RATIO * vals[vals.len() / 2]).max(OUTLIER_MIN_TURN_DEG.to_radians());
             for &k in run.iter() {
                 if turns[k] > limit {
                     ok[k] = false;
@@ -250,10 +330,7 @@ fn split_at_outliers(jn: &mut Junctions) {
 fn arc_points(pts: &[[i32; 2]], i0: usize, i1: usize, scratch: &mut EllipseScratch) {
     let n = pts.len();
     scratch.pts.clear();
-    scratch.pts.extend((i0..=i1).map(|k| {
-        let p = pts[k % n];
-        [f64::from(p[0]), f64::from(p[1])]
-    }));
+    scratch.pts.extend((i0..=i1).map(|k| fp(pts[k % n])));
 }
 
 /// Fits the border points `i0..=i1` (indices modulo the border length) and
@@ -269,14 +346,14 @@ fn push_arc(
 ) -> bool {
     let n = pts.len();
     let len = i1 - i0 + 1;
-    if len < params.min_arc_points / 2 {
+    if len < params.min_arc_points / ARC_SHARE {
         return false;
     }
     arc_points(pts, i0, i1, scratch);
     let Some(fit) = fit_ellipse(&scratch.pts) else {
         return false;
     };
-    if !(accept(&fit, params) && coverage(&scratch.pts, &fit) >= 4) {
+    if !(accept(&fit, params) && coverage(&scratch.pts, &fit) >= MIN_SECTORS) {
         return false;
     }
     scratch.arcs.push(Arc {
@@ -290,17 +367,17 @@ fn push_arc(
 }
 
 fn accept(f: &Conic, params: &EllipseParams) -> bool {
-    f.b >= params.min_minor && f.b >= 0.2 * f.a && f.rms <= params.max_rms
+    f.b >= params.min_minor && f.b >= MIN_AXIS_RATIO * f.a && f.rms <= params.max_rms
 }
 
 /// Number of 30-degree sectors (of 12) around the ellipse centre that hold
 /// fitted points.
 fn coverage(pts: &[[f64; 2]], f: &Conic) -> usize {
-    let mut bins = [false; 12];
+    let mut bins = [false; SECTORS];
     for p in pts {
         let d = sub(*p, f.centre);
         let ang = d[1].atan2(d[0]) + std::f64::consts::PI;
-        let b = ((ang / (std::f64::consts::TAU / 12.0)) as usize).min(11);
+        let b = ((ang / (std::f64::consts::TAU / SECTORS as f64)) as usize).min(SECTORS - 1);
         bins[b] = true;
     }
     bins.iter().filter(|&&b| b).count()
@@ -325,10 +402,10 @@ fn merge(
                 continue;
             }
             let f = arc.fit;
-            let tol = 0.15 * base.a.max(f.a);
+            let tol = MERGE_CENTRE * base.a.max(f.a);
             if norm(sub(f.centre, base.centre)) < tol
-                && (f.a - base.a).abs() < 0.2 * base.a
-                && (f.b - base.b).abs() < 0.25 * base.b.max(f.b)
+                && (f.a - base.a).abs() < MERGE_MAJOR * base.a
+                && (f.b - base.b).abs() < MERGE_MINOR * base.b.max(f.b)
             {
                 members.push(j);
             }
@@ -341,10 +418,9 @@ fn merge(
                 let c = &contours.list[a.contour as usize];
                 let pts = contours.points_of(c);
                 let n = pts.len();
-                scratch.pts.extend((0..a.len as usize).map(|k| {
-                    let p = pts[(a.start as usize + k) % n];
-                    [f64::from(p[0]), f64::from(p[1])]
-                }));
+                scratch
+                    .pts
+                    .extend((0..a.len as usize).map(|k| fp(pts[(a.start as usize + k) % n])));
             }
             if let Some(f) = fit_ellipse(&scratch.pts) {
                 if accept(&f, params) {
@@ -371,7 +447,7 @@ fn merge(
 /// scaled first. `None` when the points do not define an ellipse.
 fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
     let n = pts.len();
-    if n < 6 {
+    if n < MIN_FIT_POINTS {
         return None;
     }
     let nf = n as f64;
@@ -387,7 +463,7 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
         r2 += (p[0] - mx).powi(2) + (p[1] - my).powi(2);
     }
     let r = (r2 / nf).sqrt();
-    if r < 1e-9 {
+    if r < MIN_SPREAD {
         return None;
     }
     let s = std::f64::consts::SQRT_2 / r;
@@ -430,7 +506,7 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
             .iter()
             .max_by(|p, q| p.norm_squared().total_cmp(&q.norm_squared()))
             .copied()?;
-        if v.norm_squared() < 1e-30 {
+        if v.norm_squared() < NULL_VECTOR {
             continue;
         }
         if 4.0 * v[0] * v[2] - v[1] * v[1] > 0.0 {
@@ -442,7 +518,7 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
     let (ca, cb, cc, cd, ce, cf) = (a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]);
     // Centre.
     let det = 4.0 * ca * cc - cb * cb;
-    if det.abs() < 1e-15 {
+    if det.abs() < SINGULAR_CENTRE {
         return None;
     }
     let x0 = (cb * ce - 2.0 * cc * cd) / det;
@@ -468,7 +544,7 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
         let gx = 2.0 * ca * x + cb * y + cd;
         let gy = cb * x + 2.0 * cc * y + ce;
         let g2 = gx * gx + gy * gy;
-        if g2 > 1e-30 {
+        if g2 > NULL_VECTOR {
             ss += q * q / g2;
         }
     }
@@ -501,7 +577,7 @@ fn cubic_real_roots(m: &nalgebra::Matrix3<f64>) -> Vec<f64> {
         let u = (-q / 2.0 + sq).cbrt();
         let v = (-q / 2.0 - sq).cbrt();
         vec![u + v + shift]
-    } else if p.abs() < 1e-300 {
+    } else if p.abs() < TRIPLE_ROOT {
         vec![shift]
     } else {
         let r = (-p / 3.0).sqrt();
@@ -518,7 +594,11 @@ pub(crate) fn find_anchors(contours: &Contours, ellipses: &mut [Ellipse]) {
     if ellipses.is_empty() {
         return;
     }
-    for c in contours.list.iter().filter(|c| c.hole && c.len >= 4) {
+    for c in contours
+        .list
+        .iter()
+        .filter(|c| c.hole && c.len >= MIN_CHECKER_POINTS)
+    {
         let pts = contours.points_of(c);
         // Cheap bounding box first.
         let (mut x0, mut y0, mut x1, mut y1) = (i32::MAX, i32::MAX, i32::MIN, i32::MIN);
@@ -534,7 +614,7 @@ pub(crate) fn find_anchors(contours: &Contours, ellipses: &mut [Ellipse]) {
             // The checker disc's diameter is about 0.2 S (ct14: 1/6 of the
             // data square, ct8: 2/15), the rim's 1.64 S.
             let rel = size / (2.0 * e.a);
-            if !(0.04..=0.2).contains(&rel) || norm(sub(bc, e.centre)) > 0.25 * e.a {
+            if !CHECKER_SIZE.contains(&rel) || norm(sub(bc, e.centre)) > CHECKER_OFFSET * e.a {
                 continue;
             }
             // Area and centroid of the polygon through the border pixels
@@ -544,23 +624,19 @@ pub(crate) fn find_anchors(contours: &Contours, ellipses: &mut [Ellipse]) {
             let n = pts.len();
             let (mut a2, mut cx, mut cy) = (0.0, 0.0, 0.0);
             for i in 0..n {
-                let p = [f64::from(pts[i][0]), f64::from(pts[i][1])];
-                let q = [
-                    f64::from(pts[(i + 1) % n][0]),
-                    f64::from(pts[(i + 1) % n][1]),
-                ];
+                let (p, q) = (fp(pts[i]), fp(pts[(i + 1) % n]));
                 let w = cross(p, q);
                 a2 += w;
                 cx += (p[0] + q[0]) * w;
                 cy += (p[1] + q[1]) * w;
             }
-            if a2.abs() < 1e-9 {
+            if a2.abs() < MIN_SPREAD {
                 continue;
             }
             let centroid = [cx / (3.0 * a2), cy / (3.0 * a2)];
             // Roundness: area against the bounding box (a disc fills pi/4).
             let fill = (a2.abs() / 2.0) / (size * size);
-            if !(0.3..=0.95).contains(&fill) {
+            if !CHECKER_FILL.contains(&fill) {
                 continue;
             }
             if norm(sub(centroid, e.centre)) < norm(sub(e.anchor, e.centre)) || e.anchor == e.centre

@@ -13,6 +13,7 @@
 //! lines are simply reversed and no gradient has to be sampled.
 
 use super::contours::Contours;
+use crate::math::{cross, dot, fit_line, fp, norm, sub};
 
 /// A fitted line segment in working-image coordinates, dark on its right.
 #[derive(Debug, Clone, Copy)]
@@ -23,6 +24,16 @@ pub(crate) struct Line {
     pub pe: [f64; 2],
     /// Unit direction from `ps` to `pe`.
     pub dir: [f64; 2],
+}
+
+/// Parameters of the line stage, from [`crate::DetectorConfig`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LineParams {
+    /// Douglas-Peucker tolerance: largest distance (working px) of a border
+    /// point from the polygon side that replaces it.
+    pub dp_epsilon: f64,
+    /// tau: shortest polygon side (working px) that becomes a line.
+    pub min_length: f64,
 }
 
 /// Lines and polygon vertices of every contour.
@@ -39,39 +50,37 @@ pub(crate) struct Polygons {
     stack: Vec<(usize, usize)>,
 }
 
-#[inline]
-pub(crate) fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-    [a[0] - b[0], a[1] - b[1]]
-}
-#[inline]
-pub(crate) fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[0] + a[1] * b[1]
-}
-#[inline]
-pub(crate) fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
-    a[0] * b[1] - a[1] * b[0]
-}
-#[inline]
-pub(crate) fn norm(a: [f64; 2]) -> f64 {
-    a[0].hypot(a[1])
-}
-/// `v` scaled to unit length (a zero vector stays near zero, not NaN).
-#[inline]
-pub(crate) fn unit(v: [f64; 2]) -> [f64; 2] {
-    let n = norm(v).max(1e-12);
-    [v[0] / n, v[1] / n]
-}
-#[inline]
-fn fp(p: [i32; 2]) -> [f64; 2] {
-    [f64::from(p[0]), f64::from(p[1])]
-}
+/// Fewest vertices of a border's polygon: vertices are never removed
+/// below a triangle.
+const MIN_POLYGON: usize = 3;
+
+/// A chord shorter than this (px) is a point: distances are measured to it
+/// instead of to the line through it.
+const DEGENERATE_CHORD: f64 = 1e-9;
+
+/// Two consecutive polygon sides turning by less than this (degrees) are
+/// merged into one when the merged side stays within [`MERGE_SLACK`] times
+/// the Douglas-Peucker tolerance of the border (digitised edges at small
+/// angles are staircases, and DP can cut a short stair off a side).
+const MERGE_TURN_DEG: f64 = 10.0;
+
+/// Tolerance of a merged side, in multiples of the DP tolerance.
+const MERGE_SLACK: f64 = 2.0;
+
+/// A line fit leaves out one border point in `TRIM_DIVISOR` at each end of
+/// its side, at most [`MAX_TRIM`]: those are where blur and thresholding
+/// round the corners.
+const TRIM_DIVISOR: usize = 6;
+
+/// Most border points left out at each end of a side by the line fit.
+const MAX_TRIM: usize = 2;
 
 /// Douglas-Peucker on a closed border: vertex indices into `pts`, sorted.
 /// The first split is at the point farthest from `pts[0]` (the border
 /// follower starts at an extreme point, which is a vertex of the shape).
 fn dp_closed(pts: &[[i32; 2]], eps: f64, stack: &mut Vec<(usize, usize)>, out: &mut Vec<u32>) {
     let n = pts.len();
-    if n < 3 {
+    if n < MIN_POLYGON {
         return;
     }
     let first = out.len();
@@ -99,7 +108,7 @@ fn dp_closed(pts: &[[i32; 2]], eps: f64, stack: &mut Vec<(usize, usize)>, out: &
         let mut best = (0.0, i);
         for (m, p) in pts.iter().enumerate().take(j).skip(i + 1) {
             let ap = sub(fp(*p), a);
-            let d = if l > 1e-9 {
+            let d = if l > DEGENERATE_CHORD {
                 cross(ab, ap).abs() / l
             } else {
                 norm(ap)
@@ -120,7 +129,7 @@ fn dp_closed(pts: &[[i32; 2]], eps: f64, stack: &mut Vec<(usize, usize)>, out: &
     for forced in [far as u32, 0] {
         let v = &out[first..];
         let m = v.len();
-        if m <= 3 {
+        if m <= MIN_POLYGON {
             break;
         }
         let Some(k) = v.iter().position(|&x| x == forced) else {
@@ -136,9 +145,9 @@ fn dp_closed(pts: &[[i32; 2]], eps: f64, stack: &mut Vec<(usize, usize)>, out: &
     // Digitised edges at small angles are staircases; DP can cut a short
     // stair off a side near its end. Merge sides that turn by less than
     // ten degrees when the merged side stays within twice the tolerance.
-    let cos_merge = 10f64.to_radians().cos();
+    let cos_merge = MERGE_TURN_DEG.to_radians().cos();
     let mut k = 0;
-    while out.len() - first > 3 && k < out.len() - first {
+    while out.len() - first > MIN_POLYGON && k < out.len() - first {
         let v = &out[first..];
         let m = v.len();
         let (a, x, b) = (
@@ -151,7 +160,7 @@ fn dp_closed(pts: &[[i32; 2]], eps: f64, stack: &mut Vec<(usize, usize)>, out: &
         let (n1, n2) = (norm(d1), norm(d2));
         let straight = n1 > 0.0 && n2 > 0.0 && dot(d1, d2) > cos_merge * n1 * n2;
         let b2 = if b <= a { b + n } else { b };
-        if straight && max_deviation(pts, a, b2) <= 2.0 * eps {
+        if straight && max_deviation(pts, a, b2) <= MERGE_SLACK * eps {
             out.remove(first + k);
         } else {
             k += 1;
@@ -169,7 +178,7 @@ fn max_deviation(pts: &[[i32; 2]], i: usize, j: usize) -> f64 {
     (i + 1..j)
         .map(|m| {
             let ap = sub(fp(pts[m % n]), a);
-            if l > 1e-9 {
+            if l > DEGENERATE_CHORD {
                 cross(ab, ap).abs() / l
             } else {
                 norm(ap)
@@ -178,34 +187,18 @@ fn max_deviation(pts: &[[i32; 2]], i: usize, j: usize) -> f64 {
         .fold(0.0, f64::max)
 }
 
-/// Total least squares line through points `i..=j` (cyclic indices) of
-/// `pts`, leaving out `trim` points at each end; oriented from `pts[i]` to
+/// The line of the polygon side through border points `i..=j` (cyclic
+/// indices) of `pts`: [`fit_line`] to them, leaving out `trim` points at each end; oriented from `pts[i]` to
 /// `pts[j]`, endpoints are those two points projected on the line.
-pub(crate) fn fit_line(pts: &[[i32; 2]], i: usize, j: usize, trim: usize) -> Option<Line> {
+pub(crate) fn side_line(pts: &[[i32; 2]], i: usize, j: usize, trim: usize) -> Option<Line> {
     let n = pts.len();
     let count = j - i + 1;
     if count < 2 + 2 * trim {
         return None;
     }
-    let (mut sx, mut sy) = (0.0, 0.0);
-    let k0 = i + trim;
-    let k1 = j - trim;
-    let m = (k1 - k0 + 1) as f64;
-    for k in k0..=k1 {
-        let p = fp(pts[k % n]);
-        sx += p[0];
-        sy += p[1];
-    }
-    let c = [sx / m, sy / m];
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for k in k0..=k1 {
-        let p = sub(fp(pts[k % n]), c);
-        sxx += p[0] * p[0];
-        sxy += p[0] * p[1];
-        syy += p[1] * p[1];
-    }
-    let th = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let mut dir = [th.cos(), th.sin()];
+    let fit = fit_line((i + trim..=j - trim).map(|k| fp(pts[k % n])))?;
+    let c = fit.centre;
+    let mut dir = fit.dir;
     let a = fp(pts[i % n]);
     let b = fp(pts[j % n]);
     if dot(dir, sub(b, a)) < 0.0 {
@@ -222,7 +215,8 @@ pub(crate) fn fit_line(pts: &[[i32; 2]], i: usize, j: usize, trim: usize) -> Opt
 /// `min_len` long). Lines of a contour are kept in traversal order; borders
 /// are traversed with the dark side on the left, so each line is reversed
 /// to have the dark side on its right.
-pub(crate) fn extract(contours: &Contours, eps: f64, min_len: f64, out: &mut Polygons) {
+pub(crate) fn extract(contours: &Contours, params: &LineParams, out: &mut Polygons) {
+    let (eps, min_len) = (params.dp_epsilon, params.min_length);
     out.vertices.clear();
     out.vertex_ranges.clear();
     out.lines.clear();
@@ -256,8 +250,8 @@ fn lines_of(pts: &[[i32; 2]], verts: &[u32], min_len: f64, lines: &mut Vec<Line>
         if chord < min_len {
             continue;
         }
-        let trim = ((j - i) / 6).min(2);
-        if let Some(mut l) = fit_line(pts, i, j, trim) {
+        let trim = ((j - i) / TRIM_DIVISOR).min(MAX_TRIM);
+        if let Some(mut l) = side_line(pts, i, j, trim) {
             std::mem::swap(&mut l.ps, &mut l.pe);
             l.dir = [-l.dir[0], -l.dir[1]];
             lines.push(l);

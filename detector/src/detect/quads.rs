@@ -30,9 +30,9 @@
 //! the candidates over one tag, the reading with the fewest corrections
 //! wins.
 
-use super::corners::{intersect, Corner};
+use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
-use super::lines::{cross, dot, norm, sub, unit};
+use crate::math::{cross, dot, intersect, norm, sub, unit};
 
 /// A candidate quad in working-image coordinates, corners anticlockwise on
 /// screen (TL, BL, BR, TR up to a rotation).
@@ -42,8 +42,10 @@ pub(crate) struct Candidate {
     pub corners: [[f64; 2]; 4],
     /// Which corners were computed rather than seen.
     pub estimated: [bool; 4],
-    /// Index of the detected corner behind each real corner.
-    pub source: [Option<u32>; 4],
+    /// The edge pieces of each real corner (its incoming and outgoing
+    /// line, working px); `None` for estimated corners. Refinement measures
+    /// the sides along them.
+    pub edges: [Option<Edges>; 4],
     /// Tag centre estimate used for same-side recovery, if any.
     pub anchor: Option<[f64; 2]>,
     /// Number of real corners.
@@ -52,27 +54,99 @@ pub(crate) struct Candidate {
     pub area: f64,
 }
 
-/// Parameters of the quad search.
+/// The two line pieces that meet at a detected corner.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Edges {
+    /// The piece arriving at the corner (along the side before it).
+    pub incoming: Segment,
+    /// The piece leaving the corner (along the side after it).
+    pub outgoing: Segment,
+}
+
+impl Edges {
+    fn of(c: &Corner) -> Self {
+        Self {
+            incoming: c.seg_in,
+            outgoing: c.seg_out,
+        }
+    }
+}
+
+/// Parameters of the quad search, built once by [`crate::Detector::new`].
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct QuadParams {
-    /// Shortest quad side (working px).
+    /// Shortest quad side (working px); also how far ahead of a corner a
+    /// computed corner must lie.
     pub min_side: f64,
-    /// Cosine of the largest angle between two lines of the same edge.
+    /// Cosine of the largest angle between two lines of the same edge (the
+    /// outgoing line of one corner and the incoming line of the next).
     pub cos_edge: f64,
     /// Whether the occlusion cases run (else 4-cycles only).
     pub recover: bool,
-    /// Cap on candidates per frame.
+    /// Cap on candidate quads per frame.
     pub max_candidates: usize,
     /// Largest distance of a detected corner replacing an estimated one
     /// (working px).
     pub replace_dist: f64,
 }
 
+/// Candidate quads kept per candidate decoded: the search keeps this many
+/// times the decoding cap, so that the best ones survive the sort.
+pub(crate) const CANDIDATES_PER_DECODE: usize = 4;
+
+/// Successor test: largest distance (px) of a corner from the line of the
+/// previous one, `EDGE_TOL + EDGE_TOL_SLOPE * distance along it` (lines
+/// fitted to short pieces wander more far away).
+const EDGE_TOL: f64 = 1.5;
+/// Growth of the successor tolerance per pixel along the edge.
+const EDGE_TOL_SLOPE: f64 = 0.06;
+
+/// Most successors kept per corner (the nearest ones).
+const MAX_SUCCESSORS: usize = 4;
+
+/// Longest quad side against the shortest: flatter quads are not tags
+/// (a tag at 85 degrees of tilt).
+const MAX_ASPECT: f64 = 12.0;
+
+/// Where the tag centre may lie along a diagonal (fraction of the diagonal
+/// from the visible corner) in the same-side and diagonal cases: the
+/// middle, give or take perspective.
+const CENTRE_SPAN: std::ops::Range<f64> = 0.3..0.7;
+
+/// Shortest distance (px) a same-side ratio divides by.
+const MIN_DIVISOR: f64 = 1e-9;
+
+/// Diagonal case: the two corners are at least this many shortest sides
+/// apart, ...
+const DIAGONAL_MIN_SIDES: f64 = 2.0;
+/// ... and the centre lies within this fraction of the diagonal's length
+/// off it.
+const DIAGONAL_OFF_AXIS: f64 = 0.1;
+
+/// Fewest corners of one border searched on their own (a triangle).
+const MIN_BORDER_CORNERS: usize = 3;
+
+/// Corners around an ellipse: closer to its centre than this many major
+/// semi-axes (the data square's corners lie inside the rim), ...
+const ELLIPSE_REACH: f64 = 1.05;
+/// ... farther than this many minor semi-axes (not the checker's corners).
+const ELLIPSE_HOLE: f64 = 0.25;
+/// Fewest corners around an ellipse searched (a same-side pair).
+const MIN_ELLIPSE_CORNERS: usize = 2;
+
+/// A checker disc anchors a border-only quad when it is within this
+/// fraction of the mean side from the crossing of the diagonals.
+const ANCHOR_MATCH: f64 = 0.1;
+
+/// Two candidates whose corners all agree within this (working px), up to
+/// a rotation, are one.
+const DUPLICATE_TOL: f64 = 1.5;
+
 /// Reusable buffers.
 #[derive(Debug, Default)]
 pub(crate) struct QuadScratch {
     group: Vec<u32>,
-    succ: Vec<[u32; 4]>,
+    succ: Vec<[u32; MAX_SUCCESSORS]>,
     nsucc: Vec<u8>,
 }
 
@@ -86,7 +160,7 @@ fn follows(a: &Corner, b: &Corner, p: &QuadParams) -> Option<f64> {
     if dot(a.dout, b.din) < p.cos_edge {
         return None;
     }
-    let tol = 1.5 + 0.06 * t;
+    let tol = EDGE_TOL + EDGE_TOL_SLOPE * t;
     if cross(a.dout, v).abs() > tol || cross(b.din, v).abs() > tol {
         return None;
     }
@@ -110,7 +184,10 @@ fn valid_quad(q: &[[f64; 2]; 4], p: &QuadParams) -> Option<f64> {
         lmax = lmax.max(l);
         area2 += cross(a, b);
     }
-    if !(lmin >= p.min_side && lmax <= 12.0 * lmin && q.iter().flatten().all(|v| v.is_finite())) {
+    if !(lmin >= p.min_side
+        && lmax <= MAX_ASPECT * lmin
+        && q.iter().flatten().all(|v| v.is_finite()))
+    {
         return None;
     }
     Some(area2.abs() / 2.0)
@@ -119,7 +196,7 @@ fn valid_quad(q: &[[f64; 2]; 4], p: &QuadParams) -> Option<f64> {
 fn push(
     out: &mut Vec<Candidate>,
     q: [[f64; 2]; 4],
-    source: [Option<u32>; 4],
+    edges: [Option<Edges>; 4],
     anchor: Option<[f64; 2]>,
     p: &QuadParams,
 ) {
@@ -127,13 +204,13 @@ fn push(
         return;
     }
     if let Some(area) = valid_quad(&q, p) {
-        let estimated = source.map(|s| s.is_none());
+        let estimated = edges.map(|s| s.is_none());
         out.push(Candidate {
             corners: q,
             estimated,
-            source,
+            edges,
             anchor,
-            real: source.iter().filter(|s| s.is_some()).count(),
+            real: edges.iter().filter(|s| s.is_some()).count(),
             area,
         });
     }
@@ -155,24 +232,25 @@ fn search_group(
 ) {
     let k = group.len();
     s.succ.clear();
-    s.succ.resize(k, [0; 4]);
+    s.succ.resize(k, [0; MAX_SUCCESSORS]);
     s.nsucc.clear();
     s.nsucc.resize(k, 0);
-    let mut has_pred = vec![false; k];
     for i in 0..k {
         let a = &corners[group[i] as usize];
-        let mut best: [(f64, u32); 4] = [(f64::INFINITY, 0); 4];
+        let mut best = [(f64::INFINITY, 0u32); MAX_SUCCESSORS];
         let mut nb = 0usize;
         for j in 0..k {
             if i == j {
                 continue;
             }
             if let Some(t) = follows(a, &corners[group[j] as usize], p) {
-                // Keep the nearest four successors.
-                if nb < 4 {
+                // Keep the nearest MAX_SUCCESSORS successors.
+                if nb < MAX_SUCCESSORS {
                     best[nb] = (t, j as u32);
                     nb += 1;
-                } else if let Some(w) = (0..4).max_by(|&x, &y| best[x].0.total_cmp(&best[y].0)) {
+                } else if let Some(w) =
+                    (0..MAX_SUCCESSORS).max_by(|&x, &y| best[x].0.total_cmp(&best[y].0))
+                {
                     if t < best[w].0 {
                         best[w] = (t, j as u32);
                     }
@@ -181,13 +259,12 @@ fn search_group(
         }
         for (m, b) in best.iter().take(nb).enumerate() {
             s.succ[i][m] = b.1;
-            has_pred[b.1 as usize] = true;
         }
         s.nsucc[i] = nb as u8;
     }
     let succ = |i: usize| -> &[u32] { &s.succ[i][..s.nsucc[i] as usize] };
     let c = |i: u32| &corners[group[i as usize] as usize];
-    let src = |i: u32| Some(group[i as usize]);
+    let src = |i: u32| Some(Edges::of(c(i)));
     for a in 0..k as u32 {
         for &b in succ(a as usize) {
             for &cc in succ(b as usize) {
@@ -228,12 +305,12 @@ fn search_group(
                 let e1 = intersect(ca.pos, sub(o, ca.pos), cb.pos, cb.dout);
                 let e2 = intersect(cb.pos, sub(o, cb.pos), ca.pos, ca.din);
                 if let (Some(e1), Some(e2)) = (e1, e2) {
-                    let r1 = norm(sub(o, ca.pos)) / norm(sub(e1, ca.pos)).max(1e-9);
-                    let r2 = norm(sub(o, cb.pos)) / norm(sub(e2, cb.pos)).max(1e-9);
+                    let r1 = norm(sub(o, ca.pos)) / norm(sub(e1, ca.pos)).max(MIN_DIVISOR);
+                    let r2 = norm(sub(o, cb.pos)) / norm(sub(e2, cb.pos)).max(MIN_DIVISOR);
                     if ahead(cb.pos, cb.dout, e1, p.min_side)
                         && ahead(e2, ca.din, ca.pos, p.min_side)
-                        && (0.3..0.7).contains(&r1)
-                        && (0.3..0.7).contains(&r2)
+                        && CENTRE_SPAN.contains(&r1)
+                        && CENTRE_SPAN.contains(&r2)
                     {
                         let q = [ca.pos, cb.pos, e1, e2];
                         push(out, q, [src(a), src(b), None, None], anchor, p);
@@ -252,11 +329,13 @@ fn search_group(
                 let (ca, cc_) = (c(a), c(cc));
                 let diag = sub(cc_.pos, ca.pos);
                 let dl = norm(diag);
-                if dl < 2.0 * p.min_side {
+                if dl < DIAGONAL_MIN_SIDES * p.min_side {
                     continue;
                 }
                 let t = dot(sub(o, ca.pos), diag) / (dl * dl);
-                if !(0.3..0.7).contains(&t) || cross(diag, sub(o, ca.pos)).abs() > 0.1 * dl * dl {
+                if !CENTRE_SPAN.contains(&t)
+                    || cross(diag, sub(o, ca.pos)).abs() > DIAGONAL_OFF_AXIS * dl * dl
+                {
                     continue;
                 }
                 let b = intersect(ca.pos, ca.dout, cc_.pos, cc_.din);
@@ -299,7 +378,7 @@ pub(crate) fn find_candidates(
         while j < corners.len() && corners[j].contour == corners[i].contour {
             j += 1;
         }
-        if j - i >= 3 {
+        if j - i >= MIN_BORDER_CORNERS {
             let mut group = std::mem::take(&mut s.group);
             group.clear();
             group.extend(i as u32..j as u32);
@@ -313,14 +392,14 @@ pub(crate) fn find_candidates(
         let o = e.anchor;
         let mut group = std::mem::take(&mut s.group);
         group.clear();
-        let reach = 1.05 * e.a;
+        let reach = ELLIPSE_REACH * e.a;
         for (ci, c) in corners.iter().enumerate() {
             let d = norm(sub(c.pos, e.centre));
-            if d < reach && d > 0.25 * e.b && faces(c, o) {
+            if d < reach && d > ELLIPSE_HOLE * e.b && faces(c, o) {
                 group.push(ci as u32);
             }
         }
-        if group.len() >= 2 {
+        if group.len() >= MIN_ELLIPSE_CORNERS {
             search_group(corners, &group, Some(o), p, s, out);
         }
         s.group = group;
@@ -344,17 +423,16 @@ pub(crate) fn find_candidates(
             let dout = unit(sub(q[(k + 1) % 4], q[k]));
             let best = corners
                 .iter()
-                .enumerate()
-                .filter(|(_, c)| {
+                .filter(|c| {
                     norm(sub(c.pos, q[k])) < p.replace_dist
                         && dot(c.din, din) > p.cos_edge
                         && dot(c.dout, dout) > p.cos_edge
                 })
-                .min_by(|a, b| norm(sub(a.1.pos, q[k])).total_cmp(&norm(sub(b.1.pos, q[k]))));
-            if let Some((ci, c)) = best {
+                .min_by(|a, b| norm(sub(a.pos, q[k])).total_cmp(&norm(sub(b.pos, q[k]))));
+            if let Some(c) = best {
                 cand.corners[k] = c.pos;
                 cand.estimated[k] = false;
-                cand.source[k] = Some(ci as u32);
+                cand.edges[k] = Some(Edges::of(c));
                 cand.real += 1;
                 replaced = true;
             }
@@ -374,7 +452,7 @@ pub(crate) fn find_candidates(
         let side = (0..4).map(|i| norm(sub(q[(i + 1) % 4], q[i]))).sum::<f64>() / 4.0;
         cand.anchor = ellipses
             .iter()
-            .filter(|e| e.checker && norm(sub(e.anchor, x)) < 0.1 * side)
+            .filter(|e| e.checker && norm(sub(e.anchor, x)) < ANCHOR_MATCH * side)
             .min_by(|a, b| norm(sub(a.anchor, x)).total_cmp(&norm(sub(b.anchor, x))))
             .map(|e| e.anchor);
     }
@@ -386,7 +464,7 @@ pub(crate) fn find_candidates(
         let q = out[i];
         let dup = out[..kept]
             .iter()
-            .any(|k| same_quad(&k.corners, &q.corners, 1.5));
+            .any(|k| same_quad(&k.corners, &q.corners, DUPLICATE_TOL));
         if !dup {
             out[kept] = q;
             kept += 1;
@@ -397,4 +475,177 @@ pub(crate) fn find_candidates(
 
 fn same_quad(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4], tol: f64) -> bool {
     (0..4).any(|r| (0..4).all(|i| norm(sub(a[i], b[(i + r) % 4])) < tol))
+}
+
+#[cfg(test)]
+mod tests {
+    //! Each occlusion case of the paper's Algorithm 2 on hand-built corners
+    //! (and an ellipse for the tag centre): a 40 px square tag with corners
+    //! TL (20, 20), BL (20, 60), BR (60, 60), TR (60, 20), anticlockwise on
+    //! screen, centre (40, 40).
+    use super::*;
+
+    const TL: [f64; 2] = [20.0, 20.0];
+    const BL: [f64; 2] = [20.0, 60.0];
+    const BR: [f64; 2] = [60.0, 60.0];
+    const TR: [f64; 2] = [60.0, 20.0];
+    const CENTRE: [f64; 2] = [40.0, 40.0];
+
+    fn params() -> QuadParams {
+        QuadParams {
+            min_side: 4.0,
+            cos_edge: 20f64.to_radians().cos(),
+            recover: true,
+            max_candidates: 1600,
+            replace_dist: 7.0,
+        }
+    }
+
+    /// The corner at `pos` between the side arriving from `prev` and the
+    /// side leaving towards `next`, seen on `contour`; its line pieces
+    /// cover the 10 px next to it.
+    fn corner(prev: [f64; 2], pos: [f64; 2], next: [f64; 2], contour: u32) -> Corner {
+        let din = unit(sub(pos, prev));
+        let dout = unit(sub(next, pos));
+        let back = [pos[0] - 10.0 * din[0], pos[1] - 10.0 * din[1]];
+        let ahead = [pos[0] + 10.0 * dout[0], pos[1] + 10.0 * dout[1]];
+        Corner {
+            pos,
+            din,
+            dout,
+            seg_in: [back, pos],
+            seg_out: [pos, ahead],
+            contour,
+        }
+    }
+
+    /// The disc rim around the tag, its anchor on the tag centre.
+    fn rim() -> Ellipse {
+        Ellipse {
+            centre: CENTRE,
+            a: 33.0,
+            b: 33.0,
+            anchor: CENTRE,
+            checker: true,
+        }
+    }
+
+    fn search(corners: &[Corner], ellipses: &[Ellipse]) -> Vec<Candidate> {
+        let mut out = Vec::new();
+        find_candidates(
+            corners,
+            ellipses,
+            &params(),
+            &mut QuadScratch::default(),
+            &mut out,
+        );
+        out
+    }
+
+    /// The candidate over the tag (corners within 1e-6 px of the truth, up
+    /// to a rotation of the list), with its estimated flags in TL, BL, BR,
+    /// TR order.
+    fn the_tag(cands: &[Candidate]) -> Option<[bool; 4]> {
+        let truth = [TL, BL, BR, TR];
+        cands.iter().find_map(|c| {
+            (0..4).find_map(|r| {
+                (0..4)
+                    .all(|i| norm(sub(c.corners[(i + r) % 4], truth[i])) < 1e-6)
+                    .then(|| std::array::from_fn(|i| c.estimated[(i + r) % 4]))
+            })
+        })
+    }
+
+    #[test]
+    fn four_corners_form_a_quad() {
+        let corners = [
+            corner(TR, TL, BL, 0),
+            corner(TL, BL, BR, 0),
+            corner(BL, BR, TR, 0),
+            corner(BR, TR, TL, 0),
+        ];
+        let cands = search(&corners, &[]);
+        assert_eq!(the_tag(&cands), Some([false; 4]), "{cands:?}");
+        assert!(cands[0].edges.iter().all(Option::is_some));
+    }
+
+    #[test]
+    fn triangle_recovers_one_hidden_corner() {
+        // TR hidden: a path TL -> BL -> BR; TR is where BR's outgoing line
+        // meets TL's incoming line.
+        let corners = [
+            corner(TR, TL, BL, 0),
+            corner(TL, BL, BR, 0),
+            corner(BL, BR, TR, 0),
+        ];
+        let cands = search(&corners, &[]);
+        assert_eq!(
+            the_tag(&cands),
+            Some([false, false, false, true]),
+            "{cands:?}"
+        );
+        let no_recovery = {
+            let mut out = Vec::new();
+            let p = QuadParams {
+                recover: false,
+                ..params()
+            };
+            find_candidates(&corners, &[], &p, &mut QuadScratch::default(), &mut out);
+            out
+        };
+        assert!(no_recovery.is_empty());
+    }
+
+    #[test]
+    fn same_side_recovers_two_corners_from_the_centre() {
+        // The right side hidden: TL -> BL seen, BR and TR on the diagonals
+        // through the centre.
+        let corners = [corner(TR, TL, BL, 0), corner(TL, BL, BR, 0)];
+        assert!(the_tag(&search(&corners, &[])).is_none());
+        let cands = search(&corners, &[rim()]);
+        assert_eq!(
+            the_tag(&cands),
+            Some([false, false, true, true]),
+            "{cands:?}"
+        );
+    }
+
+    #[test]
+    fn symmetry_joins_corners_of_two_borders() {
+        // A band across the middle splits the border in two: TL, BL on one,
+        // BR, TR on the other. Neither border holds a tag alone; around the
+        // rim the four corners close a cycle.
+        let corners = [
+            corner(TR, TL, BL, 0),
+            corner(TL, BL, BR, 0),
+            corner(BL, BR, TR, 1),
+            corner(BR, TR, TL, 1),
+        ];
+        assert!(the_tag(&search(&corners, &[])).is_none());
+        let cands = search(&corners, &[rim()]);
+        assert_eq!(the_tag(&cands), Some([false; 4]), "{cands:?}");
+    }
+
+    #[test]
+    fn diagonal_recovers_two_opposite_corners() {
+        // BL and TR hidden: each is where a line of TL meets a line of BR.
+        let corners = [corner(TR, TL, BL, 0), corner(BL, BR, TR, 0)];
+        assert!(the_tag(&search(&corners, &[])).is_none());
+        let cands = search(&corners, &[rim()]);
+        assert_eq!(
+            the_tag(&cands),
+            Some([false, true, false, true]),
+            "{cands:?}"
+        );
+    }
+
+    #[test]
+    fn a_corner_off_its_side_is_not_a_successor() {
+        let a = corner(TR, TL, BL, 0);
+        let b = corner(TL, BL, BR, 0);
+        assert!(follows(&a, &b, &params()).is_some());
+        // BL moved 10 px sideways off TL's outgoing line.
+        let off = corner(TL, [30.0, 60.0], BR, 0);
+        assert!(follows(&a, &off, &params()).is_none());
+    }
 }

@@ -23,12 +23,114 @@
 //! the better seen side. The two estimated corners of a same-side quad are
 //! recomputed on the diagonals through the tag centre.
 
-use image::GrayImage;
-
-use super::corners::{intersect, Corner};
-use super::lines::{cross, dot, norm, sub, unit, Line};
 use super::quads::Candidate;
-use crate::decode::sample_bilinear;
+use crate::math::{cross, dot, fit_line, intersect, norm, sample_bilinear, sub, to_full, unit};
+use crate::view::GrayView;
+
+/// Parameters of refinement, built once by [`crate::Detector::new`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RefineParams {
+    /// Re-measure the sides on the full-resolution image
+    /// (`DetectorConfig::refine_corners`); else corners are the coarse
+    /// ones scaled to full resolution.
+    pub refine: bool,
+    /// Cells across a tag side, margins included, of the finest family
+    /// detected (ct14: 14 + 2): the measuring windows are sized in cells of
+    /// that family, so they never reach past its margin.
+    pub cells_per_side: f64,
+    /// Smallest step (grey levels) between the white and black ends of a
+    /// profile across an edge: flatter profiles show no edge.
+    pub min_edge_contrast: f64,
+}
+
+/// Margin cells across a tag side besides the data grid: one white cell
+/// on each side.
+pub(crate) const MARGIN_CELLS: usize = 2;
+
+/// Default of [`RefineParams::min_edge_contrast`] (grey levels).
+pub(crate) const MIN_EDGE_CONTRAST: f64 = 12.0;
+
+/// A corner moved by refinement by more than `MAX_MOVE_SIDE` times the
+/// longest side plus `MAX_MOVE_PX` times the downsampling factor (px)
+/// keeps its coarse position: such a move comes from near-parallel sides.
+const MAX_MOVE_SIDE: f64 = 0.25;
+/// See [`MAX_MOVE_SIDE`] (working px).
+const MAX_MOVE_PX: f64 = 3.0;
+
+/// A side measured over less than this fraction of the quad's longest
+/// side gives too uncertain a direction to place a hidden corner.
+const SHORT_SIDE: f64 = 0.35;
+
+/// A corner's line piece shorter than this fraction of its side is
+/// extended by following the edge ([`track`]).
+const SHORT_PIECE: f64 = 0.6;
+
+/// Edge following goes at most this many side lengths from the corner.
+const TRACK_REACH: f64 = 1.25;
+
+/// Windows of the first (wide) fitting pass across an edge, in cells of
+/// the finest family, clamped to a range in px, plus the downsampling
+/// factor (the coarse line's uncertainty): white side, ...
+const WIDE_WHITE: (f64, f64, f64) = (0.8, 1.0, 6.0);
+/// ... black side (the frame is two cells wide in ct14 terms), ...
+const WIDE_BLACK: (f64, f64, f64) = (1.6, 1.5, 10.0);
+/// ... and the profile's sampling step (px).
+const WIDE_STEP: f64 = 0.5;
+
+/// Window on both sides of the second (narrow) fitting pass: a fraction of
+/// a cell clamped to px, ...
+const NARROW: (f64, f64, f64) = (0.7, 1.0, 4.0);
+/// ... and its sampling step (px).
+const NARROW_STEP: f64 = 0.25;
+
+/// Edge points are measured from this far (px) plus
+/// `END_MARGIN_CELLS` cells (at most `END_MARGIN_MAX` px) inside each end
+/// of a line piece: the ends are where blur rounds the corner.
+const END_MARGIN_PX: f64 = 1.5;
+/// See [`END_MARGIN_PX`] (cells).
+const END_MARGIN_CELLS: f64 = 0.8;
+/// See [`END_MARGIN_PX`] (px).
+const END_MARGIN_MAX: f64 = 4.0;
+
+/// Profiles measured per line piece: about one per pixel, within this
+/// range.
+const PROFILES_PER_PIECE: (usize, usize) = (2, 40);
+
+/// Outliers of the first fit: residuals above `OUTLIER_SIGMAS` robust
+/// standard deviations (`MAD_TO_SIGMA` times the median residual) are
+/// dropped, but never those within `OUTLIER_FLOOR` px.
+const OUTLIER_SIGMAS: f64 = 3.0;
+/// Median absolute residual to standard deviation, for normal noise.
+const MAD_TO_SIGMA: f64 = 1.4826;
+/// See [`OUTLIER_SIGMAS`] (px).
+const OUTLIER_FLOOR: f64 = 0.3;
+
+/// Edge following: profile window (cells, clamped to px, plus
+/// `TRACK_WINDOW_PAD` px), ...
+const TRACK_WINDOW: (f64, f64, f64) = (0.7, 1.5, 4.0);
+/// ... the pad added to it (px), ...
+const TRACK_WINDOW_PAD: f64 = 1.0;
+/// ... the profile's sampling step (px), ...
+const TRACK_STEP: f64 = 0.5;
+/// ... the gap after which the edge is lost (cells, at least
+/// `TRACK_GAP_MIN` px), ...
+const TRACK_GAP_CELLS: f64 = 0.5;
+/// ... see [`TRACK_GAP_CELLS`] (px), ...
+const TRACK_GAP_MIN: f64 = 4.0;
+/// ... about this many probes over the reach, ...
+const TRACK_PROBES: f64 = 80.0;
+/// ... never closer than `TRACK_MIN_STEP` px, ...
+const TRACK_MIN_STEP: f64 = 1.0;
+/// ... but at least this many probes per stop gap (so that one missed
+/// probe never ends the walk), ...
+const TRACK_PROBES_PER_GAP: f64 = 2.0;
+/// ... the largest offset (px) of an edge point from the current line, ...
+const TRACK_MAX_OFFSET: f64 = 1.5;
+/// ... and the points between two refits of the followed line.
+const TRACK_REFIT: usize = 16;
+
+/// Fewest edge points a side line is fitted to.
+const MIN_EDGE_POINTS: usize = 3;
 
 /// A refined side: a point on it and its unit direction.
 #[derive(Debug, Clone, Copy)]
@@ -39,6 +141,9 @@ struct SideLine {
     support: f64,
 }
 
+/// A visible piece of a side at full resolution, start and end.
+type Piece = ([f64; 2], [f64; 2]);
+
 /// Reusable buffers.
 #[derive(Debug, Default)]
 pub(crate) struct RefineScratch {
@@ -46,47 +151,43 @@ pub(crate) struct RefineScratch {
     profile: Vec<f64>,
 }
 
-/// Working-image coordinates to full resolution.
-#[inline]
-pub(crate) fn to_full(p: [f64; 2], scale: f64) -> [f64; 2] {
-    let o = (scale - 1.0) / 2.0;
-    [p[0] * scale + o, p[1] * scale + o]
-}
-
-/// Corners of `cand` at full resolution, refined when `refine` is set.
+/// Corners of `cand` at full resolution (`scale` is the downsampling
+/// factor of the working image), refined when [`RefineParams::refine`] is
+/// set.
 pub(crate) fn refine_candidate(
-    img: &GrayImage,
+    img: &GrayView<'_>,
     cand: &Candidate,
-    corners: &[Corner],
-    lines: &[Line],
     scale: f64,
-    refine: bool,
+    params: &RefineParams,
     s: &mut RefineScratch,
 ) -> [[f64; 2]; 4] {
     let q: [[f64; 2]; 4] = cand.corners.map(|p| to_full(p, scale));
     let side_len = (0..4)
         .map(|i| norm(sub(q[(i + 1) % 4], q[i])))
         .fold(0.0, f64::max);
-    // Cell size of the finest family (14 cells + 2 margin cells).
-    let cell = side_len / 16.0;
+    let cell = side_len / params.cells_per_side;
+    let g = Gauge {
+        img,
+        cell,
+        scale,
+        params,
+    };
+    let full = |seg: [[f64; 2]; 2]| (to_full(seg[0], scale), to_full(seg[1], scale));
     let mut sides: [Option<SideLine>; 4] = [None; 4];
     for (i, side) in sides.iter_mut().enumerate() {
         let j = (i + 1) % 4;
-        let mut segs: [Option<([f64; 2], [f64; 2])>; 2] = [None; 2];
-        if let Some(ci) = cand.source[i] {
-            let l = &lines[corners[ci as usize].lout as usize];
-            segs[0] = Some((to_full(l.ps, scale), to_full(l.pe, scale)));
-        }
-        if let Some(cj) = cand.source[j] {
-            let l = &lines[corners[cj as usize].lin as usize];
-            segs[1] = Some((to_full(l.ps, scale), to_full(l.pe, scale)));
-        }
+        // Side i runs from corner i (its outgoing piece) to corner j (its
+        // incoming piece).
+        let segs: [Option<Piece>; 2] = [
+            cand.edges[i].map(|e| full(e.outgoing)),
+            cand.edges[j].map(|e| full(e.incoming)),
+        ];
         if segs.iter().all(Option::is_none) {
             continue;
         }
         // Coarse side: through the two corners when both are real, else
         // along the visible piece.
-        let coarse = if cand.source[i].is_some() && cand.source[j].is_some() {
+        let coarse = if cand.edges[i].is_some() && cand.edges[j].is_some() {
             SideLine {
                 p: q[i],
                 d: unit(sub(q[j], q[i])),
@@ -105,40 +206,40 @@ pub(crate) fn refine_candidate(
                 support: norm(sub(b, a)),
             }
         };
-        if !refine {
+        if !params.refine {
             *side = Some(coarse);
             continue;
         }
-        let mut line = fit_side(img, &coarse, &segs, cell, scale, 1, s)
-            .and_then(|l| fit_side(img, &l, &segs, cell, scale, 2, s).or(Some(l)))
+        let mut line = fit_side(&g, &coarse, &segs, Pass::Wide, s)
+            .and_then(|l| fit_side(&g, &l, &segs, Pass::Narrow, s).or(Some(l)))
             .unwrap_or(coarse);
         // The corner's own line piece can be short (a chamfer where blur
         // rounds the corner, or a side cut by an occluder); follow the
         // edge from each measured end for as long as it is seen, then fit
         // again over all of it.
         let len = norm(sub(q[j], q[i]));
-        let reach = 1.25 * len;
+        let reach = TRACK_REACH * len;
         // Only pieces that cover less than most of the side need it: a
         // clean tag's lines run corner to corner and cost nothing more.
-        let short = |seg: Option<([f64; 2], [f64; 2])>| {
-            seg.is_some_and(|(a, b)| norm(sub(b, a)) < 0.6 * len)
-        };
+        let short =
+            |seg: Option<Piece>| seg.is_some_and(|(a, b)| norm(sub(b, a)) < SHORT_PIECE * len);
         let from_i = short(segs[0])
-            .then(|| track(img, &line, q[i], 1.0, reach, cell, s))
+            .then(|| track(&g, &line, q[i], 1.0, reach, s))
             .flatten();
         let from_j = short(segs[1])
-            .then(|| track(img, &line, q[j], -1.0, reach, cell, s))
+            .then(|| track(&g, &line, q[j], -1.0, reach, s))
             .flatten();
         if from_i.is_some() || from_j.is_some() {
             let spans = [from_i.or(segs[0]), from_j.or(segs[1])];
-            if let Some(l) = fit_side(img, &line, &spans, cell, scale, 2, s) {
+            if let Some(l) = fit_side(&g, &line, &spans, Pass::Narrow, s) {
                 line = l;
             }
         }
         *side = Some(line);
     }
     let mut out = q;
-    let modest = |x: [f64; 2], k: usize| norm(sub(x, q[k])) < 0.25 * side_len + 3.0 * scale;
+    let modest =
+        |x: [f64; 2], k: usize| norm(sub(x, q[k])) < MAX_MOVE_SIDE * side_len + MAX_MOVE_PX * scale;
     for k in 0..4 {
         if let (Some(a), Some(b)) = (sides[(k + 3) % 4], sides[k]) {
             if let Some(x) = intersect(a.p, a.d, b.p, b.d) {
@@ -196,7 +297,7 @@ pub(crate) fn refine_candidate(
             let both_known = sides[(k + 3) % 4].is_some() && sides[k].is_some();
             if let (Some(l), false) = (known, both_known) {
                 if let Some(x) = intersect(opposite, sub(o, opposite), l.p, l.d) {
-                    if norm(sub(x, q[k])) < 0.25 * side_len + 3.0 * scale {
+                    if modest(x, k) {
                         out[k] = x;
                     }
                 }
@@ -206,35 +307,64 @@ pub(crate) fn refine_candidate(
     out
 }
 
-/// A side measured over less than this fraction of the quad's longest
-/// side gives too uncertain a direction to place a hidden corner.
-const SHORT_SIDE: f64 = 0.35;
+/// The two fitting passes over a side.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Pass {
+    /// Wide windows around the coarse line.
+    Wide,
+    /// Narrow windows around the first result.
+    Narrow,
+}
+
+/// What measuring along the sides of one candidate needs.
+struct Gauge<'i, 'p> {
+    /// The full-resolution image.
+    img: &'p GrayView<'i>,
+    /// Cell size of the candidate (px): its longest side over
+    /// [`RefineParams::cells_per_side`].
+    cell: f64,
+    /// Downsampling factor of the working image the candidate was found on.
+    scale: f64,
+    /// The stage parameters.
+    params: &'p RefineParams,
+}
+
+/// `cell`-relative size `(factor, min, max)` of a window, in px.
+#[inline]
+fn window((factor, lo, hi): (f64, f64, f64), cell: f64) -> f64 {
+    (factor * cell).clamp(lo, hi)
+}
 
 /// Measures edge points along the visible pieces of one side and fits a
-/// line. `pass` 1 uses a wide window, 2 a narrow one.
+/// line.
 fn fit_side(
-    img: &GrayImage,
+    g: &Gauge<'_, '_>,
     line: &SideLine,
-    segs: &[Option<([f64; 2], [f64; 2])>; 2],
-    cell: f64,
-    scale: f64,
-    pass: u32,
+    segs: &[Option<Piece>; 2],
+    pass: Pass,
     s: &mut RefineScratch,
 ) -> Option<SideLine> {
+    let (img, cell, scale) = (g.img, g.cell, g.scale);
     // Right normal: towards the black frame.
     let n = [-line.d[1], line.d[0]];
-    let (w_white, w_black, step) = if pass == 1 {
+    let (w_white, w_black, step) = if pass == Pass::Wide {
         let slack = scale;
         (
-            (0.8 * cell).clamp(1.0, 6.0) + slack,
-            (1.6 * cell).clamp(1.5, 10.0) + slack,
-            0.5,
+            window(WIDE_WHITE, cell) + slack,
+            window(WIDE_BLACK, cell) + slack,
+            WIDE_STEP,
         )
     } else {
-        let w = (0.7 * cell).clamp(1.0, 4.0);
-        (w, w, 0.25)
+        let w = window(NARROW, cell);
+        (w, w, NARROW_STEP)
     };
-    let margin = 1.5 + (0.8 * cell).min(4.0) + scale;
+    let margin = END_MARGIN_PX + (END_MARGIN_CELLS * cell).min(END_MARGIN_MAX) + scale;
+    let profile = Profile {
+        w_white,
+        w_black,
+        step,
+        min_contrast: g.params.min_edge_contrast,
+    };
     s.edge.clear();
     for (a, b) in segs.iter().flatten() {
         // Project the piece onto the current line.
@@ -244,16 +374,16 @@ fn fit_side(
         if t1 <= t0 {
             continue;
         }
-        let count = ((t1 - t0).ceil() as usize).clamp(2, 40);
+        let count = ((t1 - t0).ceil() as usize).clamp(PROFILES_PER_PIECE.0, PROFILES_PER_PIECE.1);
         for k in 0..count {
             let t = t0 + (t1 - t0) * (k as f64 + 0.5) / count as f64;
             let c = [line.p[0] + t * line.d[0], line.p[1] + t * line.d[1]];
-            if let Some(off) = edge_crossing(img, c, n, w_white, w_black, step, &mut s.profile) {
+            if let Some(off) = edge_crossing(img, c, n, &profile, &mut s.profile) {
                 s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
             }
         }
     }
-    let first = tls(&s.edge)?;
+    let first = edge_line(&s.edge)?;
     // Drop outliers, refit.
     let res: Vec<f64> = s
         .edge
@@ -263,13 +393,13 @@ fn fit_side(
     let mut sorted = res.clone();
     sorted.sort_by(f64::total_cmp);
     let med = sorted[sorted.len() / 2];
-    let cut = (3.0 * 1.4826 * med).max(0.3);
+    let cut = (OUTLIER_SIGMAS * MAD_TO_SIGMA * med).max(OUTLIER_FLOOR);
     let mut i = 0;
     s.edge.retain(|_| {
         i += 1;
         res[i - 1] <= cut
     });
-    let mut fit = tls(&s.edge)?;
+    let mut fit = edge_line(&s.edge)?;
     if dot(fit.d, line.d) < 0.0 {
         fit.d = [-fit.d[0], -fit.d[1]];
     }
@@ -283,40 +413,45 @@ fn fit_side(
 /// stops where the edge has not been seen for half a cell (an occluder, or
 /// the far corner).
 fn track(
-    img: &GrayImage,
+    g: &Gauge<'_, '_>,
     line: &SideLine,
     from: [f64; 2],
     sign: f64,
     reach: f64,
-    cell: f64,
     s: &mut RefineScratch,
-) -> Option<([f64; 2], [f64; 2])> {
+) -> Option<Piece> {
+    let (img, cell) = (g.img, g.cell);
     // Right normal of the side's own direction: towards the black frame.
     let n = [-line.d[1], line.d[0]];
     let mut d = [sign * line.d[0], sign * line.d[1]];
     // Start on the line, level with the corner.
     let t0 = dot(sub(from, line.p), line.d);
     let mut o = [line.p[0] + t0 * line.d[0], line.p[1] + t0 * line.d[1]];
-    let w = (0.7 * cell).clamp(1.5, 4.0) + 1.0;
-    // About 80 probes over a side, never more than half the stop gap apart.
-    let gap = (0.5 * cell).max(4.0);
-    let step = (reach / 80.0).clamp(1.0, 0.5 * gap);
-    let start = 1.5 + (0.8 * cell).min(4.0);
+    let w = window(TRACK_WINDOW, cell) + TRACK_WINDOW_PAD;
+    let profile = Profile {
+        w_white: w,
+        w_black: w,
+        step: TRACK_STEP,
+        min_contrast: g.params.min_edge_contrast,
+    };
+    let gap = (TRACK_GAP_CELLS * cell).max(TRACK_GAP_MIN);
+    let step = (reach / TRACK_PROBES).clamp(TRACK_MIN_STEP, gap / TRACK_PROBES_PER_GAP);
+    let start = END_MARGIN_PX + (END_MARGIN_CELLS * cell).min(END_MARGIN_MAX);
     s.edge.clear();
     let mut last = None;
     let mut t = start;
     let mut since_fit = 0;
     while t < reach {
         let c = [o[0] + t * d[0], o[1] + t * d[1]];
-        let seen =
-            edge_crossing(img, c, n, w, w, 0.5, &mut s.profile).filter(|off| off.abs() <= 1.5);
+        let seen = edge_crossing(img, c, n, &profile, &mut s.profile)
+            .filter(|off| off.abs() <= TRACK_MAX_OFFSET);
         if let Some(off) = seen {
             s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
             last = Some(t);
             since_fit += 1;
-            if since_fit >= 16 {
+            if since_fit >= TRACK_REFIT {
                 since_fit = 0;
-                if let Some(f) = tls(&s.edge) {
+                if let Some(f) = edge_line(&s.edge) {
                     let fd = if dot(f.d, d) < 0.0 {
                         [-f.d[0], -f.d[1]]
                     } else {
@@ -334,28 +469,38 @@ fn track(
         t += step;
     }
     let end = last?;
-    (s.edge.len() >= 3).then(|| {
+    (s.edge.len() >= MIN_EDGE_POINTS).then(|| {
         let a = [o[0] + start * d[0], o[1] + start * d[1]];
         let b = [o[0] + end * d[0], o[1] + end * d[1]];
         (a, b)
     })
 }
 
+/// How a grey profile across an edge is sampled: window on the white
+/// (negative) and black (positive) side of the probe point and step (px),
+/// and the contrast it needs.
+#[derive(Debug, Clone, Copy)]
+struct Profile {
+    w_white: f64,
+    w_black: f64,
+    step: f64,
+    min_contrast: f64,
+}
+
 /// Offset along `n` from `c` where the grey profile crosses halfway between
 /// its white (negative side) and black (positive side) levels, nearest to
 /// 0. `None` without contrast or crossing.
 fn edge_crossing(
-    img: &GrayImage,
+    img: &GrayView<'_>,
     c: [f64; 2],
     n: [f64; 2],
-    w_white: f64,
-    w_black: f64,
-    step: f64,
+    p: &Profile,
     prof: &mut Vec<f64>,
 ) -> Option<f64> {
+    let step = p.step;
     prof.clear();
-    let k0 = -(w_white / step).round() as i32;
-    let k1 = (w_black / step).round() as i32;
+    let k0 = -(p.w_white / step).round() as i32;
+    let k1 = (p.w_black / step).round() as i32;
     for k in k0..=k1 {
         let t = f64::from(k) * step;
         prof.push(sample_bilinear(img, c[0] + t * n[0], c[1] + t * n[1])?);
@@ -363,7 +508,7 @@ fn edge_crossing(
     let mid_k = (-k0) as usize;
     let white = prof[..=mid_k].iter().copied().fold(f64::MIN, f64::max);
     let black = prof[mid_k..].iter().copied().fold(f64::MAX, f64::min);
-    if white - black < 12.0 {
+    if white - black < p.min_contrast {
         return None;
     }
     let level = 0.5 * (white + black);
@@ -381,26 +526,14 @@ fn edge_crossing(
     best
 }
 
-fn tls(pts: &[[f64; 2]]) -> Option<SideLine> {
-    if pts.len() < 3 {
+/// The line through the edge points (at least [`MIN_EDGE_POINTS`]), with
+/// the length of their projection on it as support.
+fn edge_line(pts: &[[f64; 2]]) -> Option<SideLine> {
+    if pts.len() < MIN_EDGE_POINTS {
         return None;
     }
-    let m = pts.len() as f64;
-    let (mut sx, mut sy) = (0.0, 0.0);
-    for p in pts {
-        sx += p[0];
-        sy += p[1];
-    }
-    let c = [sx / m, sy / m];
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in pts {
-        let d = sub(*p, c);
-        sxx += d[0] * d[0];
-        sxy += d[0] * d[1];
-        syy += d[1] * d[1];
-    }
-    let th = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let d = [th.cos(), th.sin()];
+    let fit = fit_line(pts.iter().copied())?;
+    let (c, d) = (fit.centre, fit.dir);
     let (mut t0, mut t1) = (f64::INFINITY, f64::NEG_INFINITY);
     for p in pts {
         let t = dot(sub(*p, c), d);

@@ -7,10 +7,67 @@
 //! memory instead of O(width x height): a 20000 x 20000 frame needs no
 //! 1.6 GB integral image.
 
-/// 2 x 2 box downsampling of `src` (`w` x `h`, row-major) into `dst`, which
-/// is resized to `(w / 2) x (h / 2)`. Working pixel `(x, y)` has its centre
-/// at full-resolution `(2x + 0.5, 2y + 0.5)`.
-pub(crate) fn downsample2(src: &[u8], w: usize, h: usize, dst: &mut Vec<u8>) -> (usize, usize) {
+use crate::view::GrayView;
+
+/// Images smaller than this (px) in either direction are not downsampled:
+/// there is nothing left to find at half their size.
+pub(crate) const MIN_DOWNSAMPLE_SIZE: usize = 8;
+
+/// Parameters of the threshold stage, from [`crate::DetectorConfig`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct ThresholdParams {
+    /// Downsample 2x before thresholding (`downsample == 2`).
+    pub downsample: bool,
+    /// Radius of the mean window (working px): the window is
+    /// `2 radius + 1` pixels square.
+    pub radius: usize,
+    /// A pixel is dark when more than this many grey levels below its
+    /// window's mean.
+    pub offset: u8,
+}
+
+/// Scale of the downsampled working image: [`downsample2`] halves both
+/// sides.
+pub(crate) const DOWNSAMPLE_FACTOR: f64 = 2.0;
+
+/// The image segmentation runs on and its scale (full-resolution pixels
+/// per working pixel): `img` itself, or its 2x downsampled copy (kept in
+/// `small`) when `p.downsample` is set and the image is at least
+/// [`MIN_DOWNSAMPLE_SIZE`] pixels each way.
+pub(crate) fn working_image<'b>(
+    img: GrayView<'b>,
+    p: &ThresholdParams,
+    small: &'b mut Vec<u8>,
+) -> (GrayView<'b>, f64) {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE {
+        let (w2, h2) = downsample2(img.data(), w, h, img.stride(), small);
+        (GrayView::packed(small, w2, h2), DOWNSAMPLE_FACTOR)
+    } else {
+        (img, 1.0)
+    }
+}
+
+/// [`adaptive_threshold`] of the working image with the stage's parameters.
+pub(crate) fn threshold(
+    work: &GrayView<'_>,
+    p: &ThresholdParams,
+    colsum: &mut Vec<u32>,
+    out: &mut Vec<u8>,
+) {
+    adaptive_threshold(work, p.radius, p.offset, colsum, out);
+}
+
+/// 2 x 2 box downsampling of `src` (`w` x `h`, rows `stride` bytes apart)
+/// into `dst`, which is resized to `(w / 2) x (h / 2)` (packed). Working
+/// pixel `(x, y)` has its centre at full-resolution `(2x + 0.5, 2y + 0.5)`.
+pub(crate) fn downsample2(
+    src: &[u8],
+    w: usize,
+    h: usize,
+    stride: usize,
+    dst: &mut Vec<u8>,
+) -> (usize, usize) {
     let (w2, h2) = (w / 2, h / 2);
     dst.clear();
     dst.resize(w2 * h2, 0);
@@ -18,8 +75,8 @@ pub(crate) fn downsample2(src: &[u8], w: usize, h: usize, dst: &mut Vec<u8>) -> 
         return (w2, h2);
     }
     for (y, out) in dst.chunks_exact_mut(w2).enumerate() {
-        let r0 = &src[2 * y * w..2 * y * w + 2 * w2];
-        let r1 = &src[(2 * y + 1) * w..(2 * y + 1) * w + 2 * w2];
+        let r0 = &src[2 * y * stride..2 * y * stride + 2 * w2];
+        let r1 = &src[(2 * y + 1) * stride..(2 * y + 1) * stride + 2 * w2];
         for (x, o) in out.iter_mut().enumerate() {
             let s = u16::from(r0[2 * x])
                 + u16::from(r0[2 * x + 1])
@@ -39,14 +96,13 @@ pub(crate) fn downsample2(src: &[u8], w: usize, h: usize, dst: &mut Vec<u8>) -> 
 ///
 /// `colsum` is scratch space, resized here.
 pub(crate) fn adaptive_threshold(
-    img: &[u8],
-    w: usize,
-    h: usize,
+    img: &GrayView<'_>,
     radius: usize,
     offset: u8,
     colsum: &mut Vec<u32>,
     out: &mut Vec<u8>,
 ) {
+    let (w, h) = (img.width() as usize, img.height() as usize);
     let pw = w + 2;
     out.clear();
     out.resize(pw * (h + 2), 0);
@@ -63,21 +119,21 @@ pub(crate) fn adaptive_threshold(
         let want_top = y.saturating_sub(r);
         let want_bottom = (y + r + 1).min(h);
         while bottom < want_bottom {
-            let row = &img[bottom * w..(bottom + 1) * w];
+            let row = img.row(bottom);
             for (c, &p) in colsum.iter_mut().zip(row) {
                 *c += u32::from(p);
             }
             bottom += 1;
         }
         while top < want_top {
-            let row = &img[top * w..(top + 1) * w];
+            let row = img.row(top);
             for (c, &p) in colsum.iter_mut().zip(row) {
                 *c -= u32::from(p);
             }
             top += 1;
         }
         let rows = (bottom - top) as u32;
-        let row = &img[y * w..(y + 1) * w];
+        let row = img.row(y);
         let dst = &mut out[(y + 1) * pw + 1..(y + 1) * pw + 1 + w];
         // Horizontal running sum over colsum: clipped windows at both ends,
         // a tight loop with a constant count in between.
@@ -120,7 +176,7 @@ mod tests {
     fn downsample_averages_blocks() {
         let src = [0u8, 4, 8, 8, 0, 0, 8, 8, 100, 100, 200, 200];
         let mut dst = Vec::new();
-        let (w, h) = downsample2(&src, 4, 3, &mut dst);
+        let (w, h) = downsample2(&src, 4, 3, 4, &mut dst);
         assert_eq!((w, h), (2, 1));
         assert_eq!(dst, vec![1, 8]);
     }
@@ -138,7 +194,7 @@ mod tests {
                 })
                 .collect();
             let (mut cs, mut out) = (Vec::new(), Vec::new());
-            adaptive_threshold(&img, w, h, r, 5, &mut cs, &mut out);
+            adaptive_threshold(&GrayView::packed(&img, w, h), r, 5, &mut cs, &mut out);
             for y in 0..h {
                 for x in 0..w {
                     let (mut sum, mut count) = (0u32, 0u32);
@@ -169,7 +225,7 @@ mod tests {
             }
         }
         let (mut cs, mut out) = (Vec::new(), Vec::new());
-        adaptive_threshold(&img, w, h, 6, 5, &mut cs, &mut out);
+        adaptive_threshold(&GrayView::packed(&img, w, h), 6, 5, &mut cs, &mut out);
         let at = |x: usize, y: usize| out[(y + 1) * (w + 2) + x + 1];
         assert_eq!(at(5, 5), 1);
         assert_eq!(at(4, 5), 0);

@@ -86,10 +86,9 @@ struct JsonImage<'a> {
 /// reported on stderr and make the command fail at the end.
 pub fn run(args: &DetectArgs) -> Result<()> {
     let config = DetectorConfig {
-        families: args.family.clone(),
         downsample: args.downsample,
         recover_occluded: !args.no_occlusion,
-        ..DetectorConfig::default()
+        ..DetectorConfig::with_builtin_families(&args.family).context("--family")?
     };
     let mut detector = Detector::new(config).context("invalid detector settings")?;
     if let Some(out) = &args.draw {
@@ -150,7 +149,7 @@ fn one_image(
                 .iter()
                 .zip(&poses)
                 .map(|(d, p)| JsonDetection {
-                    family: d.family,
+                    family: &d.family,
                     id: d.id,
                     corners: d.corners,
                     estimated: d.estimated,

@@ -1,0 +1,182 @@
+//! Stage 6: refinement and decoding of the candidate quads, best first, and
+//! one detection per physical tag.
+//!
+//! A tag seen through an occluder usually has several candidate quads (a
+//! triangle through a false corner on the occluder's edge, a same-side
+//! recovery, ...) and a wrong one can still decode, the Reed-Solomon code
+//! absorbing the misplaced cells. So a found tag that needed corrections
+//! keeps up to [`DecodingParams::max_rivals`] more overlapping candidates
+//! decoded, and the reading with the fewest corrections wins: the right
+//! geometry explains the visible cells best.
+
+use super::quads::Candidate;
+use super::refine::{refine_candidate, RefineParams, RefineScratch};
+use super::Detection;
+use crate::decode::{decode_quad_with, DecodeParams};
+use crate::family::Family;
+use crate::geometry::CORNERS;
+use crate::homography::Homography;
+use crate::math::{inside, to_full};
+use crate::view::GrayView;
+
+/// Default of [`DecodingParams::max_rivals`].
+pub(crate) const MAX_RIVALS: usize = 6;
+
+/// Parameters of stage 6, built once by [`crate::Detector::new`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct DecodingParams {
+    /// Most candidates refined and decoded per frame
+    /// (`DetectorConfig::max_candidates`).
+    pub max_attempts: usize,
+    /// Extra overlapping candidates decoded for a tag already found with
+    /// corrections.
+    pub max_rivals: usize,
+    /// Sub-pixel refinement.
+    pub refine: RefineParams,
+    /// Decoder thresholds.
+    pub decode: DecodeParams,
+}
+
+/// A family decoded, with the corrections a reading of it may need.
+#[derive(Debug, Clone)]
+pub(crate) struct Target {
+    /// The family.
+    pub family: Family,
+    /// Most Reed-Solomon symbol corrections accepted.
+    pub max_corrected: usize,
+}
+
+/// A tag found in this frame and how many rival candidates were tried.
+#[derive(Debug)]
+pub(crate) struct Found {
+    det: Detection,
+    rivals: usize,
+}
+
+/// Refines and decodes `candidates` (best first, working-image coordinates
+/// scaled by `scale`) on the full-resolution `img`. Candidates whose centre
+/// falls inside a tag already read cleanly are skipped. Returns the tags
+/// found and the number of candidates decoded.
+pub(crate) fn decode_candidates(
+    img: &GrayView<'_>,
+    candidates: &[Candidate],
+    scale: f64,
+    targets: &[Target],
+    p: &DecodingParams,
+    scratch: &mut RefineScratch,
+) -> (Vec<Found>, usize) {
+    let mut found: Vec<Found> = Vec::new();
+    let mut attempts = 0;
+    for cand in candidates {
+        if attempts >= p.max_attempts {
+            break;
+        }
+        let centre = {
+            let c = cand.corners.map(|q| to_full(q, scale));
+            [
+                (c[0][0] + c[1][0] + c[2][0] + c[3][0]) / 4.0,
+                (c[0][1] + c[1][1] + c[2][1] + c[3][1]) / 4.0,
+            ]
+        };
+        let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+        if let Some(r) = rival {
+            let f = &found[r];
+            if f.det.corrected == 0 || f.rivals >= p.max_rivals {
+                continue;
+            }
+        }
+        attempts += 1;
+        let q = refine_candidate(img, cand, scale, &p.refine, scratch);
+        let best = read(img, cand, &q, centre, targets, &p.decode);
+        match (rival, best) {
+            (Some(r), Some(b)) => {
+                let f = &mut found[r];
+                f.rivals += 1;
+                // Only a reading of the same tag competes; a different
+                // id inside a found tag is not trusted over it.
+                if b.family == f.det.family && b.id == f.det.id && better(&b, &f.det) {
+                    f.det = b;
+                }
+            }
+            (Some(r), None) => found[r].rivals += 1,
+            (None, Some(b)) => found.push(Found { det: b, rivals: 0 }),
+            (None, None) => {}
+        }
+    }
+    (found, attempts)
+}
+
+/// The best reading of the refined quad `q` over the target families: the
+/// fewest corrections, the first family on a tie. `centre` (the quad's
+/// centroid) stands in for the tag centre if the homography cannot map it.
+fn read(
+    img: &GrayView<'_>,
+    cand: &Candidate,
+    q: &[[f64; 2]; 4],
+    centre: [f64; 2],
+    targets: &[Target],
+    params: &DecodeParams,
+) -> Option<Detection> {
+    let mut best: Option<Detection> = None;
+    for t in targets {
+        // A clean read cannot be beaten by another family.
+        if best.as_ref().is_some_and(|b| b.corrected == 0) {
+            break;
+        }
+        let Some(r) = decode_quad_with(img, &t.family, q, params) else {
+            continue;
+        };
+        if r.corrected > t.max_corrected {
+            continue;
+        }
+        if best.as_ref().is_some_and(|b| b.corrected <= r.corrected) {
+            continue;
+        }
+        let d = r.rotation % 4;
+        let estimated = std::array::from_fn(|c| cand.estimated[(c + 4 - d) % 4]);
+        let Some(h) = Homography::from_points(&CORNERS, &r.corners) else {
+            continue;
+        };
+        let center = h.map([0.0, 0.0]).unwrap_or(centre);
+        best = Some(Detection {
+            family: t.family.name().to_string(),
+            id: r.id,
+            corners: r.corners,
+            estimated,
+            corrected: r.corrected,
+            center,
+            contrast: r.contrast,
+            homography: h,
+        });
+    }
+    best
+}
+
+/// One detection per physical tag, sorted by family and id. Candidates
+/// overlapping an earlier find were skipped while decoding, but a later,
+/// larger quad may still contain an earlier one: of two detections of
+/// which one contains the other's centre, the better reading stays.
+pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
+    let mut out: Vec<Detection> = Vec::with_capacity(found.len());
+    for Found { det: d, .. } in found {
+        if let Some(o) = out
+            .iter_mut()
+            .find(|o| inside(&o.corners, d.center) || inside(&d.corners, o.center))
+        {
+            if better(&d, o) {
+                *o = d;
+            }
+        } else {
+            out.push(d);
+        }
+    }
+    out.sort_by(|a, b| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
+    out
+}
+
+/// Whether reading `a` of a tag is better than reading `b`: fewer Reed-
+/// Solomon corrections, then more measured corners.
+fn better(a: &Detection, b: &Detection) -> bool {
+    let real = |d: &Detection| d.estimated.iter().filter(|&&e| !e).count();
+    (std::cmp::Reverse(a.corrected), real(a)) > (std::cmp::Reverse(b.corrected), real(b))
+}

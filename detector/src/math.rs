@@ -1,0 +1,194 @@
+//! Small geometry helpers shared by the detector's stages and the decoder:
+//! 2-D vector operations, line intersection, the one total-least-squares
+//! line fit, bilinear sampling and the working-to-full-resolution
+//! coordinate map. Kept in one place so that no stage owns (or duplicates)
+//! them.
+
+use crate::view::GrayView;
+
+/// `a - b`.
+#[inline]
+pub(crate) fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+/// Dot product.
+#[inline]
+pub(crate) fn dot(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+/// z component of the cross product; negative when `b` turns anticlockwise
+/// on screen (y down) from `a`.
+#[inline]
+pub(crate) fn cross(a: [f64; 2], b: [f64; 2]) -> f64 {
+    a[0] * b[1] - a[1] * b[0]
+}
+
+/// Euclidean length.
+#[inline]
+pub(crate) fn norm(a: [f64; 2]) -> f64 {
+    a[0].hypot(a[1])
+}
+
+/// Shortest length [`unit()`] divides by: a zero vector stays near zero
+/// instead of becoming NaN.
+const UNIT_MIN_NORM: f64 = 1e-12;
+
+/// `v` scaled to unit length (a zero vector stays near zero, not NaN).
+#[inline]
+pub(crate) fn unit(v: [f64; 2]) -> [f64; 2] {
+    let n = norm(v).max(UNIT_MIN_NORM);
+    [v[0] / n, v[1] / n]
+}
+
+/// Integer pixel position as a point.
+#[inline]
+pub(crate) fn fp(p: [i32; 2]) -> [f64; 2] {
+    [f64::from(p[0]), f64::from(p[1])]
+}
+
+/// Two lines whose directions' sine is below this (relative to their
+/// lengths) are treated as parallel by [`intersect`].
+const PARALLEL_SIN: f64 = 1e-6;
+
+/// Intersection of the line through `p` with direction `d` and the line
+/// through `q` with direction `e`; `None` when (nearly) parallel.
+#[inline]
+pub(crate) fn intersect(p: [f64; 2], d: [f64; 2], q: [f64; 2], e: [f64; 2]) -> Option<[f64; 2]> {
+    let den = cross(d, e);
+    if den.abs() < PARALLEL_SIN * norm(d) * norm(e) {
+        return None;
+    }
+    let t = cross(sub(q, p), e) / den;
+    Some([p[0] + t * d[0], p[1] + t * d[1]])
+}
+
+/// A line from [`fit_line`]: the centroid of the points and a unit
+/// direction (its sign is arbitrary).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LineFit {
+    /// Centroid of the fitted points.
+    pub centre: [f64; 2],
+    /// Unit direction.
+    pub dir: [f64; 2],
+}
+
+/// Total least squares line through `pts` (the principal axis of their
+/// scatter matrix, in closed form); `None` for fewer than two points.
+pub(crate) fn fit_line<I>(pts: I) -> Option<LineFit>
+where
+    I: Iterator<Item = [f64; 2]> + Clone,
+{
+    let (mut sx, mut sy, mut count) = (0.0, 0.0, 0usize);
+    for p in pts.clone() {
+        sx += p[0];
+        sy += p[1];
+        count += 1;
+    }
+    if count < 2 {
+        return None;
+    }
+    let m = count as f64;
+    let c = [sx / m, sy / m];
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let d = sub(p, c);
+        sxx += d[0] * d[0];
+        sxy += d[0] * d[1];
+        syy += d[1] * d[1];
+    }
+    let th = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    Some(LineFit {
+        centre: c,
+        dir: [th.cos(), th.sin()],
+    })
+}
+
+/// Bilinear sample of an 8-bit image at a pixel-centre coordinate; `None`
+/// outside the image.
+#[inline]
+pub(crate) fn sample_bilinear(img: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
+    let (w, h) = (img.width(), img.height());
+    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
+        return None;
+    }
+    // x, y >= 0 here, so truncation is floor.
+    let x0 = (x as u32).min(w.saturating_sub(2));
+    let y0 = (y as u32).min(h.saturating_sub(2));
+    let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
+    let x1 = (x0 + 1).min(w - 1) as usize;
+    let y1 = (y0 + 1).min(h - 1) as usize;
+    let (x0, y0, stride) = (x0 as usize, y0 as usize, img.stride());
+    let raw = img.data();
+    let p = |x: usize, y: usize| f64::from(raw[y * stride + x]);
+    let top = p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx;
+    let bot = p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx;
+    Some(top * (1.0 - fy) + bot * fy)
+}
+
+/// Working-image coordinates (after downsampling by `scale`) to full
+/// resolution, both pixel-centre: working pixel `x` covers full pixels
+/// `scale x .. scale x + scale - 1`, whose centre is
+/// `scale x + (scale - 1) / 2`.
+#[inline]
+pub(crate) fn to_full(p: [f64; 2], scale: f64) -> [f64; 2] {
+    let o = (scale - 1.0) / 2.0;
+    [p[0] * scale + o, p[1] * scale + o]
+}
+
+/// Whether `p` is inside (or on the border of) the convex quad `q`.
+pub(crate) fn inside(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
+    let mut sign = 0.0;
+    for i in 0..4 {
+        let a = q[i];
+        let b = q[(i + 1) % 4];
+        let c = (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0]);
+        if c == 0.0 {
+            continue;
+        }
+        if sign == 0.0 {
+            sign = c.signum();
+        } else if c.signum() != sign {
+            return false;
+        }
+    }
+    true
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_a_line_through_noisy_points() {
+        let pts = [[0.0, 1.0], [1.0, 2.1], [2.0, 2.9], [3.0, 4.0]];
+        let f = fit_line(pts.iter().copied()).unwrap();
+        assert!((f.dir[1] / f.dir[0] - 1.0).abs() < 0.05, "{f:?}");
+        assert!((f.centre[0] - 1.5).abs() < 1e-12 && (f.centre[1] - 2.5).abs() < 1e-12);
+        assert!(fit_line([[1.0, 1.0]].into_iter()).is_none());
+    }
+
+    #[test]
+    fn intersects_and_rejects_parallel_lines() {
+        let x = intersect([0.0, 0.0], [1.0, 0.0], [2.0, -1.0], [0.0, 1.0]).unwrap();
+        assert_eq!(x, [2.0, 0.0]);
+        assert!(intersect([0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [2.0, 0.0]).is_none());
+    }
+
+    #[test]
+    fn samples_bilinearly_with_a_stride() {
+        // 2 x 2 image in a buffer with stride 3 (the third byte is padding).
+        let data = [0u8, 100, 255, 100, 200, 255];
+        let v = GrayView::new(&data, 2, 2, 3).unwrap();
+        assert_eq!(sample_bilinear(&v, 0.5, 0.5), Some(100.0));
+        assert_eq!(sample_bilinear(&v, 1.0, 1.0), Some(200.0));
+        assert_eq!(sample_bilinear(&v, 1.5, 0.0), None);
+    }
+
+    #[test]
+    fn scales_pixel_centres() {
+        assert_eq!(to_full([0.0, 0.0], 2.0), [0.5, 0.5]);
+        assert_eq!(to_full([3.0, 1.0], 1.0), [3.0, 1.0]);
+    }
+}

@@ -1,0 +1,141 @@
+//! A borrowed 8-bit grey image: what the detector and the decoder read.
+//!
+//! Camera drivers hand out frames as a byte buffer with a row stride that
+//! may be wider than the image (rows padded for alignment). A [`GrayView`]
+//! describes such a buffer as it is, so a frame is detected without being
+//! copied into an owned image first; an `&image::GrayImage` converts into
+//! one for free.
+
+use image::GrayImage;
+
+use crate::{Error, Result};
+
+/// A borrowed grey image: `height` rows of `width` bytes, row `y` starting
+/// at byte `y * stride` of `data`.
+#[derive(Debug, Clone, Copy)]
+pub struct GrayView<'a> {
+    data: &'a [u8],
+    width: u32,
+    height: u32,
+    stride: usize,
+}
+
+impl<'a> GrayView<'a> {
+    /// A view of `data` as `width` x `height` pixels with rows `stride`
+    /// bytes apart. Fails when the stride is narrower than a row or `data`
+    /// is too short for the last row (it may end right after it).
+    pub fn new(data: &'a [u8], width: u32, height: u32, stride: usize) -> Result<Self> {
+        let bad = |reason: String| Error::InvalidParameter {
+            name: "image view",
+            reason,
+        };
+        let w = width as usize;
+        if stride < w {
+            return Err(bad(format!("row stride {stride} is below the width {w}")));
+        }
+        let need = match height {
+            0 => 0,
+            h => (h as usize - 1)
+                .checked_mul(stride)
+                .and_then(|n| n.checked_add(w))
+                .ok_or_else(|| bad("size overflows".into()))?,
+        };
+        if data.len() < need {
+            return Err(bad(format!(
+                "{width} x {height} pixels with stride {stride} need {need} bytes, got {}",
+                data.len()
+            )));
+        }
+        Ok(Self {
+            data,
+            width,
+            height,
+            stride,
+        })
+    }
+
+    /// A packed buffer the crate made itself (`data.len() == w * h`).
+    pub(crate) fn packed(data: &'a [u8], width: usize, height: usize) -> Self {
+        debug_assert_eq!(data.len(), width * height);
+        Self {
+            data,
+            width: width as u32,
+            height: height as u32,
+            stride: width,
+        }
+    }
+
+    /// Width in pixels.
+    #[inline]
+    pub fn width(&self) -> u32 {
+        self.width
+    }
+
+    /// Height in pixels.
+    #[inline]
+    pub fn height(&self) -> u32 {
+        self.height
+    }
+
+    /// Bytes from one row's start to the next's.
+    #[inline]
+    pub fn stride(&self) -> usize {
+        self.stride
+    }
+
+    /// The underlying bytes (row `y` starts at `y * stride`).
+    #[inline]
+    pub fn data(&self) -> &'a [u8] {
+        self.data
+    }
+
+    /// Row `y` (`width` bytes). Panics when `y >= height`.
+    #[inline]
+    pub fn row(&self, y: usize) -> &'a [u8] {
+        let start = y * self.stride;
+        &self.data[start..start + self.width as usize]
+    }
+
+    /// The grey level at `(x, y)`, `None` outside the image.
+    #[inline]
+    pub fn get(&self, x: u32, y: u32) -> Option<u8> {
+        (x < self.width && y < self.height)
+            .then(|| self.data[y as usize * self.stride + x as usize])
+    }
+}
+
+impl<'a> From<&'a GrayImage> for GrayView<'a> {
+    fn from(img: &'a GrayImage) -> Self {
+        Self {
+            data: img.as_raw(),
+            width: img.width(),
+            height: img.height(),
+            stride: img.width() as usize,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rejects_short_buffers_and_narrow_strides() {
+        let data = [0u8; 10];
+        assert!(GrayView::new(&data, 4, 2, 3).is_err());
+        assert!(GrayView::new(&data, 4, 3, 4).is_err());
+        // The last row may end at the buffer's end: 2 * 4 + 2 = 10.
+        let v = GrayView::new(&data, 2, 3, 4).unwrap();
+        assert_eq!(v.row(2).len(), 2);
+        assert!(GrayView::new(&data, 0, 0, 0).is_ok());
+    }
+
+    #[test]
+    fn reads_through_the_stride() {
+        let data = [1u8, 2, 99, 3, 4, 99];
+        let v = GrayView::new(&data, 2, 2, 3).unwrap();
+        assert_eq!(v.get(1, 1), Some(4));
+        assert_eq!(v.get(2, 0), None);
+        assert_eq!(v.row(1), &[3, 4]);
+    }
+}
