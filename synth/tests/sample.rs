@@ -641,3 +641,17 @@ occluder_coverage = [0.38, 0.40]
         assert!(cov <= cap + 1e-6 && cov > 0.3, "image {i}: {kind} {cov}");
     }
 }
+
+#[test]
+fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
+    // The four systems draw the same scenes: one wild spec stands for all.
+    for name in ["coppertag-wild", "coppertag-jitter", "fp-clutter"] {
+        let spec = DatasetSpec::load(&dir.join(format!("{name}.toml"))).unwrap();
+        for i in 0..spec.image_count() {
+            if let Err(e) = spec.sampled_scene(i).unwrap() {
+                panic!("{name} image {i}: {e}");
+            }
+        }
+    }
+}
