@@ -57,16 +57,16 @@ fn erf(x: f64) -> f64 {
     }
 }
 
-/// The share of a half-plane shadow's darkness over the pixel at signed
-/// distance `d` pixels from its edge (positive inside): the standard
-/// normal CDF of `d / s`, where `s^2 = sigma^2 + 1/12` adds the variance of
-/// the pixel's own width (a unit box) to the penumbra's; a step by pixel
-/// area for a hard edge.
-fn penumbra(d: f64, sigma: f64) -> f64 {
-    if sigma <= 0.0 {
-        return (d + 0.5).clamp(0.0, 1.0);
-    }
-    let z = d / (sigma * sigma + 1.0 / 12.0).sqrt();
+/// `1 / s` for the penumbra of a half-plane shadow of Gaussian sigma
+/// `sigma` seen by a pixel: `s^2 = sigma^2 + 1/12` adds the variance of the
+/// pixel's own width (a unit box) to the penumbra's.
+fn penumbra_scale(sigma: f64) -> f64 {
+    1.0 / (sigma * sigma + 1.0 / 12.0).sqrt()
+}
+
+/// The share of a half-plane shadow's darkness at `z` penumbra scales from
+/// its edge (positive inside): the standard normal CDF.
+fn penumbra(z: f64) -> f64 {
     if z >= PENUMBRA_REACH_SIGMAS {
         1.0
     } else if z <= -PENUMBRA_REACH_SIGMAS {
@@ -224,11 +224,29 @@ impl Lighting {
         let mut light = Canvas::new(w, h, 1.0);
         for s in &self.shadows {
             if let Some([nx, ny, c]) = s.half_plane {
+                // A hard edge (sigma 0) by pixel area along the normal.
+                let hard = s.softness_px <= 0.0;
+                let k = if hard {
+                    1.0
+                } else {
+                    penumbra_scale(s.softness_px)
+                };
+                let full = 1.0 - s.darkness as f32;
                 for y in 0..h {
                     let row = &mut light.data[y * w..(y + 1) * w];
                     let d0 = ny * y as f64 - c;
                     for (x, l) in row.iter_mut().enumerate() {
-                        let m = penumbra(d0 + nx * x as f64, s.softness_px);
+                        let z = (d0 + nx * x as f64) * k;
+                        let m = if hard {
+                            (z + 0.5).clamp(0.0, 1.0)
+                        } else if z <= -PENUMBRA_REACH_SIGMAS {
+                            continue;
+                        } else if z >= PENUMBRA_REACH_SIGMAS {
+                            *l *= full;
+                            continue;
+                        } else {
+                            penumbra(z)
+                        };
                         *l *= 1.0 - (s.darkness * m) as f32;
                     }
                 }

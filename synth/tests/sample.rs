@@ -602,3 +602,56 @@ occluder_fill = [0.5, 0.9]
     }
     assert!(ink > 0 && tape > 0, "{ink} ink, {tape} tape");
 }
+
+#[test]
+fn generated_kinds_near_40_percent_always_render() {
+    let tmp = tempfile::tempdir().unwrap();
+    let text = r#"
+seed = 9
+[camera]
+width = 200
+height = 150
+fx = 200.0
+[sample]
+markers = [{ system = "coppertag", family = "ct14" }]
+count = 300
+square_m = 0.05
+side_px = [30, 40]
+occluder_kind = ["triangle", "same-side", "symmetry", "diagonal", "inner", "stick", "cable", "flush-tape", "blob"]
+occluder_coverage = [0.38, 0.40]
+"#;
+    let spec = DatasetSpec::load(&write(tmp.path(), "c.toml", text)).unwrap();
+    for i in 0..spec.image_count() {
+        let s = spec.sampled_scene(i).unwrap().unwrap();
+        let kind = s
+            .draws
+            .iter()
+            .find(|d| d.factor == "occluder_kind")
+            .unwrap();
+        let cov = s
+            .draws
+            .iter()
+            .find(|d| d.factor == "occluder_coverage")
+            .unwrap();
+        let (kind, cov) = (
+            kind.value.to_string(),
+            cov.value.to_string().parse::<f64>().unwrap(),
+        );
+        let cap = if kind == "inner" { 0.35 } else { 0.40 };
+        assert!(cov <= cap + 1e-6 && cov > 0.3, "image {i}: {kind} {cov}");
+    }
+}
+
+#[test]
+fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
+    // The four systems draw the same scenes: one wild spec stands for all.
+    for name in ["coppertag-wild", "coppertag-jitter", "fp-clutter"] {
+        let spec = DatasetSpec::load(&dir.join(format!("{name}.toml"))).unwrap();
+        for i in 0..spec.image_count() {
+            if let Err(e) = spec.sampled_scene(i).unwrap() {
+                panic!("{name} image {i}: {e}");
+            }
+        }
+    }
+}
