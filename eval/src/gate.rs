@@ -12,7 +12,14 @@
 //!   [`Tolerances::time_ratio`] beyond doubt: the whole noise band of the
 //!   ratio lies above the baseline ratio times `1 + time_ratio`. Absolute
 //!   times differ between machines, ratios much less; a band rather than a
-//!   point keeps a busy machine from failing unchanged code.
+//!   point keeps a busy machine from failing unchanged code;
+//! - for a system with a wild entry (the quick slice of the sampled
+//!   "wild" sets, [`crate::wild_summary`]): the slice is not the same
+//!   (another count of markers or tag-free images), its detection rate
+//!   falls, or its rough detections, wrong ids, false positives on tagged
+//!   frames or false positives per megapixel on tag-free frames grow. All
+//!   of them are deterministic (same bytes in, same numbers out), so any
+//!   change is real and there is no tolerance.
 
 use std::collections::BTreeMap;
 
@@ -20,6 +27,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::metrics::Summary;
 use crate::speed::{RatioEstimate, SpeedReport};
+use crate::wild_summary::{SystemRow, WildSummary};
 
 /// What the gate remembers of one detector on one dataset.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -40,12 +48,64 @@ pub struct BaselineEntry {
     pub time_median_ms: f64,
 }
 
-/// A baseline: entries by `detector/dataset`, plus our speed relative to
-/// each peer.
+/// What the gate remembers of one system on the wild slice (one row of
+/// the wild table).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct WildBaselineEntry {
+    /// True markers counted (the slice's identity: a changed spec or
+    /// slice changes it).
+    pub markers: usize,
+    /// Tag-free images (likewise).
+    pub tag_free_images: usize,
+    /// (correct + rough) / markers.
+    pub detection_rate: f64,
+    /// Rough detections: right id, a corner beyond the match distance.
+    pub rough: usize,
+    /// Detections of another id on a true marker.
+    pub wrong_ids: usize,
+    /// False positives on tagged frames.
+    pub false_positives_tagged: usize,
+    /// False positives per megapixel on tag-free frames (`None` without
+    /// them).
+    pub false_positives_per_mp: Option<f64>,
+}
+
+impl WildBaselineEntry {
+    /// The entry of one wild-table row.
+    pub fn of(r: &SystemRow) -> Self {
+        Self {
+            markers: r.markers,
+            tag_free_images: r.tag_free_images,
+            detection_rate: r.detection_rate,
+            rough: r.rough,
+            wrong_ids: r.wrong_ids,
+            false_positives_tagged: r.false_positives_tagged,
+            false_positives_per_mp: r.false_positives_per_mp,
+        }
+    }
+}
+
+/// Systems whose wild figures the gate keeps: the detector this toolkit
+/// ships. The peers' wild figures are reported, not gated: a peer's
+/// regression is not ours to fail on.
+pub const WILD_GATED: &[&str] = &["coppertag"];
+
+/// The key of a system's wild entry.
+pub fn wild_key(system: &str) -> String {
+    format!("{system}/wild")
+}
+
+/// A baseline: entries by `detector/dataset`, the wild slice's entries by
+/// `system/wild`, plus our speed relative to each peer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct Baseline {
     /// How the baseline was made.
     pub made_by: String,
+    /// Wild-slice entries by `system/wild` (systems in [`WILD_GATED`]).
+    /// Written right after `made_by` so that adding them to an existing
+    /// file only adds lines.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub wild: BTreeMap<String, WildBaselineEntry>,
     /// Entries by `detector/dataset`.
     pub entries: BTreeMap<String, BaselineEntry>,
     /// Our time over the peer's (median of per-frame ratios, with its
@@ -80,10 +140,26 @@ fn key(s: &Summary) -> String {
     format!("{}/{}", s.detector, s.dataset)
 }
 
-/// A baseline from summaries and, when given, a speed measurement.
-pub fn baseline_of(summaries: &[Summary], speed: Option<&SpeedReport>, made_by: &str) -> Baseline {
+/// The wild entries of the gated systems ([`WILD_GATED`]) in `w`.
+pub fn wild_entries_of(w: &WildSummary) -> BTreeMap<String, WildBaselineEntry> {
+    w.systems
+        .iter()
+        .filter(|r| WILD_GATED.contains(&r.system.as_str()))
+        .map(|r| (wild_key(&r.system), WildBaselineEntry::of(r)))
+        .collect()
+}
+
+/// A baseline from summaries and, when given, a speed measurement and a
+/// wild summary.
+pub fn baseline_of(
+    summaries: &[Summary],
+    speed: Option<&SpeedReport>,
+    wild: Option<&WildSummary>,
+    made_by: &str,
+) -> Baseline {
     Baseline {
         made_by: made_by.into(),
+        wild: wild.map(wild_entries_of).unwrap_or_default(),
         entries: summaries
             .iter()
             .map(|s| {
@@ -147,6 +223,60 @@ pub fn check(baseline: &Baseline, summaries: &[Summary], tol: Tolerances) -> Vec
                     "{k}: {what} grew {was:.3} -> {is:.3} px (allowed {allowed:.3})"
                 ));
             }
+        }
+    }
+    fails
+}
+
+/// Compares a wild summary with the baseline's wild entries; returns the
+/// failures, one readable line each (empty = pass).
+pub fn check_wild(baseline: &Baseline, wild: &WildSummary) -> Vec<String> {
+    let now: BTreeMap<String, &SystemRow> = wild
+        .systems
+        .iter()
+        .map(|r| (wild_key(&r.system), r))
+        .collect();
+    let mut fails = Vec::new();
+    for (k, b) in &baseline.wild {
+        let Some(r) = now.get(k) else {
+            fails.push(format!("{k}: missing from this run"));
+            continue;
+        };
+        let n = WildBaselineEntry::of(r);
+        if (n.markers, n.tag_free_images) != (b.markers, b.tag_free_images) {
+            fails.push(format!(
+                "{k}: not the same slice ({} markers and {} tag-free images, baseline {} and {}); \
+                 re-make the baseline if the wild specs changed on purpose",
+                n.markers, n.tag_free_images, b.markers, b.tag_free_images
+            ));
+            continue;
+        }
+        if n.detection_rate < b.detection_rate - 1e-9 {
+            fails.push(format!(
+                "{k}: detection rate fell {:.2}% -> {:.2}%",
+                100.0 * b.detection_rate,
+                100.0 * n.detection_rate
+            ));
+        }
+        for (what, was, is) in [
+            ("rough detections", b.rough, n.rough),
+            ("wrong ids", b.wrong_ids, n.wrong_ids),
+            (
+                "false positives on tagged frames",
+                b.false_positives_tagged,
+                n.false_positives_tagged,
+            ),
+        ] {
+            if is > was {
+                fails.push(format!("{k}: {what} grew {was} -> {is}"));
+            }
+        }
+        match (b.false_positives_per_mp, n.false_positives_per_mp) {
+            (Some(was), Some(is)) if is > was + 1e-9 => fails.push(format!(
+                "{k}: false positives per megapixel grew {was:.4} -> {is:.4}"
+            )),
+            (Some(_), None) => fails.push(format!("{k}: no tag-free frames in this run")),
+            _ => {}
         }
     }
     fails

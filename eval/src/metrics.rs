@@ -36,7 +36,8 @@ impl Default for MatchRule {
 }
 
 impl MatchRule {
-    fn tolerance(&self, m: &TruthMarker) -> f64 {
+    /// The match distance for marker `m`, px.
+    pub fn tolerance(&self, m: &TruthMarker) -> f64 {
         self.min_px.max(self.side_fraction * m.side_px)
     }
 }

@@ -12,6 +12,7 @@ use crate::atomic::write_atomic_in_new_dir;
 use crate::error::{EvalError, Result};
 use crate::metrics::Summary;
 use crate::plot::{line_chart, Chart, Series};
+use crate::wild_summary::WildSummary;
 
 /// Marker systems in the paper's table order.
 pub const SYSTEMS: [&str; 4] = ["aruco3", "apriltag3", "stag", "coppertag"];
@@ -409,11 +410,14 @@ fn runs(summaries: &[Summary], out: &mut String) {
 }
 
 /// Writes every table and figure into `dir`; returns the Markdown body.
+/// `wild`, when given, adds the sampled-scene section
+/// ([`crate::wild_report`]) before the list of runs.
 pub fn write_report(
     summaries: &[Summary],
     dir: &Path,
     machine: Machine,
     preamble: &str,
+    wild: Option<&WildSummary>,
 ) -> Result<String> {
     std::fs::create_dir_all(dir).map_err(|e| EvalError::io(dir, e))?;
     let mut md = String::from(preamble);
@@ -424,6 +428,9 @@ pub fn write_report(
     figure7(summaries, dir, &mut md)?;
     robustness(summaries, dir, &mut md, &mut rb)?;
     challenge(summaries, &mut md, &mut ch);
+    if let Some(w) = wild {
+        md.push_str(&crate::wild_report::write_wild_section(w, dir)?);
+    }
     runs(summaries, &mut md);
     for (name, body) in [
         ("table1.csv", &t1),

@@ -20,14 +20,12 @@ use mcap::records::{MessageHeader, Metadata};
 use serde::{Deserialize, Serialize};
 use serde_json::json;
 
+// One annotation schema and one clock for datasets and runs: synth's.
+use coppertag_synth::foxglove::{annotations_schema, log_time, stamp};
+
 use crate::error::{EvalError, Result};
 use crate::protocol::ImageResult;
 use crate::runner::{IndexedResult, RunInfo, RunOutput, RunResources};
-
-/// Log time of image `index`, nanoseconds (the dataset's convention).
-pub fn log_time(index: usize) -> u64 {
-    1_000_000_000 + index as u64 * 100_000_000
-}
 
 /// One `/detections` message.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -66,32 +64,8 @@ fn detections_schema() -> serde_json::Value {
     })
 }
 
-fn annotations_schema() -> serde_json::Value {
-    let point =
-        json!({"type": "object", "properties": {"x": {"type": "number"}, "y": {"type": "number"}}});
-    let colour = json!({"type": "object", "properties": {
-        "r": {"type": "number"}, "g": {"type": "number"}, "b": {"type": "number"}, "a": {"type": "number"}}});
-    let time = json!({"type": "object", "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}});
-    json!({
-        "title": "foxglove.ImageAnnotations",
-        "type": "object",
-        "properties": {
-            "circles": {"type": "array"},
-            "points": {"type": "array", "items": {"type": "object", "properties": {
-                "timestamp": time, "type": {"type": "integer"},
-                "points": {"type": "array", "items": point},
-                "outline_color": colour, "outline_colors": {"type": "array"},
-                "fill_color": colour, "thickness": {"type": "number"}}}},
-            "texts": {"type": "array", "items": {"type": "object", "properties": {
-                "timestamp": time, "position": point, "text": {"type": "string"},
-                "font_size": {"type": "number"}, "text_color": colour, "background_color": colour}}}
-        }
-    })
-}
-
 fn annotations(index: usize, result: &ImageResult) -> serde_json::Value {
-    let t = log_time(index);
-    let ts = json!({"sec": t / 1_000_000_000, "nsec": t % 1_000_000_000});
+    let ts = stamp(log_time(index));
     let mut points = Vec::new();
     let mut texts = Vec::new();
     for d in &result.detections {

@@ -86,6 +86,10 @@ pub struct RunInfo {
     pub machine: String,
     /// Start of the run, seconds since the Unix epoch.
     pub started_unix_s: u64,
+    /// `K/N` when the run covered only shard K of N of the dataset
+    /// ([`crate::shard`]); empty for a whole run.
+    #[serde(default)]
+    pub shard: String,
 }
 
 /// Resource use of a run.
@@ -383,6 +387,24 @@ pub struct RunOutput {
     pub resources: RunResources,
 }
 
+/// Runs `spec` over the images of `dataset` in `shard` (all of them for
+/// `None`) and records the shard in the run's facts.
+pub fn run_shard(
+    spec: &DetectorSpec,
+    dataset: &Dataset,
+    shard: Option<crate::shard::Shard>,
+    progress: impl FnMut(usize, usize),
+) -> Result<RunOutput> {
+    let Some(shard) = shard else {
+        return run(spec, dataset, progress);
+    };
+    let mut slice = dataset.clone();
+    crate::shard::restrict(&mut slice, shard);
+    let mut out = run(spec, &slice, progress)?;
+    out.info.shard = shard.to_string();
+    Ok(out)
+}
+
 /// Runs `spec` over every image of `dataset`; `progress(done, total)` is
 /// called after each image.
 ///
@@ -435,6 +457,7 @@ pub fn run(
             dataset_dir: dataset.dir.display().to_string(),
             machine: resources::machine(),
             started_unix_s,
+            shard: String::new(),
         },
         results,
         resources,

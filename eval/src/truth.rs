@@ -15,6 +15,10 @@ pub struct TruthMarker {
     pub image: String,
     /// Image index in the full dataset (sets its MCAP log time).
     pub index: usize,
+    /// The marker's index in the spec (`marker_index`; older datasets
+    /// without the column read as 0).
+    #[serde(default)]
+    pub marker_index: usize,
     /// Marker system: coppertag, apriltag3, aruco3, stag.
     pub marker: String,
     /// Family or codebook name.
@@ -39,6 +43,27 @@ pub struct TruthMarker {
     pub y3: f64,
     /// Side of the marker square in pixels (mean of the four edges).
     pub side_px: f64,
+    /// Side of the marker square, metres (the size a pose solver needs).
+    #[serde(default)]
+    pub square_m: Option<f64>,
+    /// Rotation vector marker -> camera, radians, x.
+    #[serde(default)]
+    pub rvec_x: Option<f64>,
+    /// Rotation vector y.
+    #[serde(default)]
+    pub rvec_y: Option<f64>,
+    /// Rotation vector z.
+    #[serde(default)]
+    pub rvec_z: Option<f64>,
+    /// Translation of the marker-square centre, metres, x.
+    #[serde(default)]
+    pub tx: Option<f64>,
+    /// Translation y.
+    #[serde(default)]
+    pub ty: Option<f64>,
+    /// Translation z.
+    #[serde(default)]
+    pub tz: Option<f64>,
     /// Swept parameter (`z`, `rx`, `ry`, `rz`, `pattern`...).
     #[serde(default)]
     pub param: String,
@@ -68,6 +93,16 @@ impl TruthMarker {
             [self.x2, self.y2],
             [self.x3, self.y3],
         ]
+    }
+
+    /// The true pose, when the truth file has it: rotation vector
+    /// (radians), translation (metres) and the marker-square side (metres).
+    pub fn pose(&self) -> Option<([f64; 3], [f64; 3], f64)> {
+        Some((
+            [self.rvec_x?, self.rvec_y?, self.rvec_z?],
+            [self.tx?, self.ty?, self.tz?],
+            self.square_m?,
+        ))
     }
 }
 
@@ -148,5 +183,53 @@ impl Dataset {
             .next()
             .and_then(|v| v.first())
             .map_or("", |m| m.marker.as_str())
+    }
+}
+
+/// A marker for unit tests: `corners` TL, BL, BR, TR; pose fields when
+/// `pose` is given as (rvec, tvec, square side).
+#[cfg(test)]
+pub(crate) fn test_marker(
+    index: usize,
+    id: u64,
+    corners: [[f64; 2]; 4],
+    pose: Option<([f64; 3], [f64; 3], f64)>,
+) -> TruthMarker {
+    let side = (0..4)
+        .map(|k| {
+            let (a, b) = (corners[k], corners[(k + 1) % 4]);
+            (a[0] - b[0]).hypot(a[1] - b[1])
+        })
+        .sum::<f64>()
+        / 4.0;
+    TruthMarker {
+        image: format!("images/{index:06}.png"),
+        index,
+        marker_index: 0,
+        marker: "coppertag".into(),
+        family: "ct14".into(),
+        id,
+        x0: corners[0][0],
+        y0: corners[0][1],
+        x1: corners[1][0],
+        y1: corners[1][1],
+        x2: corners[2][0],
+        y2: corners[2][1],
+        x3: corners[3][0],
+        y3: corners[3][1],
+        side_px: side,
+        square_m: pose.map(|p| p.2),
+        rvec_x: pose.map(|p| p.0[0]),
+        rvec_y: pose.map(|p| p.0[1]),
+        rvec_z: pose.map(|p| p.0[2]),
+        tx: pose.map(|p| p.1[0]),
+        ty: pose.map(|p| p.1[1]),
+        tz: pose.map(|p| p.1[2]),
+        param: String::new(),
+        value: None,
+        value_deg: None,
+        occlusion_pattern: String::new(),
+        occlusion_scenario: String::new(),
+        occlusion_coverage: None,
     }
 }

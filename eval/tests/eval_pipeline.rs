@@ -145,7 +145,7 @@ fn gate_passes_on_baseline_and_fails_on_degraded_run() {
     let (path, _) = run_ours(tmp.path());
     let ds = Dataset::open(dataset()).unwrap();
     let good = evaluate(&RunLog::read(&path).unwrap(), &ds, MatchRule::default());
-    let base = baseline_of(std::slice::from_ref(&good), None, "test");
+    let base = baseline_of(std::slice::from_ref(&good), None, None, "test");
     assert!(check(&base, std::slice::from_ref(&good), Tolerances::default()).is_empty());
 
     // Degrade: lose the detection in 3 images, push corners 0.4 px off in

@@ -38,7 +38,7 @@ fn the_saved_run_passes_against_itself_with_bands_around_the_median() {
             p.ratio
         );
     }
-    let baseline = baseline_of(&[], Some(&run), "test");
+    let baseline = baseline_of(&[], Some(&run), None, "test");
     let verdicts = check_speed(&baseline, &run, Tolerances::default());
     assert_eq!(verdicts.len(), 3);
     assert!(verdicts.iter().all(|v| !v.failed), "{verdicts:?}");
@@ -47,7 +47,7 @@ fn the_saved_run_passes_against_itself_with_bands_around_the_median() {
 #[test]
 fn a_forty_percent_slowdown_fails_for_every_peer() {
     let run = saved_run();
-    let baseline = baseline_of(&[], Some(&run), "test");
+    let baseline = baseline_of(&[], Some(&run), None, "test");
     let verdicts = check_speed(&baseline, &slowed(&run, 1.4), Tolerances::default());
     for v in &verdicts {
         assert!(v.failed, "not caught: {v}");
@@ -58,7 +58,7 @@ fn a_forty_percent_slowdown_fails_for_every_peer() {
 #[test]
 fn a_ten_percent_drift_is_inside_the_tolerance() {
     let run = saved_run();
-    let baseline = baseline_of(&[], Some(&run), "test");
+    let baseline = baseline_of(&[], Some(&run), None, "test");
     let verdicts = check_speed(&baseline, &slowed(&run, 1.1), Tolerances::default());
     assert!(verdicts.iter().all(|v| !v.failed), "{verdicts:?}");
 }
@@ -66,7 +66,7 @@ fn a_ten_percent_drift_is_inside_the_tolerance() {
 #[test]
 fn a_peer_missing_from_the_run_fails() {
     let run = saved_run();
-    let baseline = baseline_of(&[], Some(&run), "test");
+    let baseline = baseline_of(&[], Some(&run), None, "test");
     let mut partial = run.clone();
     partial.peers.remove("stag");
     let verdicts = check_speed(&baseline, &partial, Tolerances::default());

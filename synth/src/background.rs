@@ -52,6 +52,22 @@ pub enum BackgroundKind {
         #[serde(skip)]
         pixels: Arc<Vec<f32>>,
     },
+    /// A rotated, scaled crop of a photograph (sampled specs): output pixel
+    /// `p` shows the source at `centre + R(-angle) (p - image centre) /
+    /// scale`, bilinear.
+    Photo {
+        /// The file as given in the spec.
+        path: PathBuf,
+        /// Rotation, radians.
+        angle: f64,
+        /// Output pixels per source pixel.
+        scale: f64,
+        /// Source point at the image centre, source pixel-centre coordinates.
+        centre: [f64; 2],
+        /// The photograph in grey.
+        #[serde(skip)]
+        source: Arc<image::GrayImage>,
+    },
 }
 
 /// A background and its distance (for defocus).
@@ -85,6 +101,37 @@ fn transform(poly: &[[f64; 2]], c: [f64; 2], scale: f64, angle: f64) -> Vec<[f64
             [c[0] + co * x - s * y, c[1] + s * x + co * y]
         })
         .collect()
+}
+
+/// Paints a rotated, scaled view of `source` (bilinear, edges clamped).
+fn paint_photo(
+    canvas: &mut Canvas,
+    source: &image::GrayImage,
+    angle: f64,
+    scale: f64,
+    centre: [f64; 2],
+) {
+    let (w, h) = (canvas.width, canvas.height);
+    let (sw, sh) = (source.width() as usize, source.height() as usize);
+    if sw == 0 || sh == 0 {
+        return;
+    }
+    let raw = source.as_raw();
+    let (s, c) = angle.sin_cos();
+    let (ox, oy) = ((w as f64 - 1.0) / 2.0, (h as f64 - 1.0) / 2.0);
+    let at = |x: usize, y: usize| f64::from(raw[y.min(sh - 1) * sw + x.min(sw - 1)]) / 255.0;
+    for y in 0..h {
+        for x in 0..w {
+            let (dx, dy) = ((x as f64 - ox) / scale, (y as f64 - oy) / scale);
+            let u = (centre[0] + c * dx + s * dy).clamp(0.0, (sw - 1) as f64);
+            let v = (centre[1] - s * dx + c * dy).clamp(0.0, (sh - 1) as f64);
+            let (x0, y0) = (u.floor() as usize, v.floor() as usize);
+            let (fx, fy) = (u - x0 as f64, v - y0 as f64);
+            let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
+            let bot = at(x0, y0 + 1) * (1.0 - fx) + at(x0 + 1, y0 + 1) * fx;
+            canvas.data[y * w + x] = (top * (1.0 - fy) + bot * fy) as f32;
+        }
+    }
 }
 
 impl Background {
@@ -125,6 +172,13 @@ impl Background {
                 }
             }
             BackgroundKind::Image { pixels, .. } => canvas.data.copy_from_slice(pixels),
+            BackgroundKind::Photo {
+                angle,
+                scale,
+                centre,
+                source,
+                ..
+            } => paint_photo(canvas, source, *angle, *scale, *centre),
         }
     }
 }

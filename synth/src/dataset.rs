@@ -5,6 +5,7 @@
 //! ```text
 //! <out>/images/000000.png ...  8-bit grey PNGs, named by image index
 //! <out>/truth.csv              one row per marker per image (columns below)
+//! <out>/draws.csv              sampled specs only: every drawn factor per image and marker
 //! <out>/dataset.json           camera, conventions, the resolved spec and its text
 //! <out>/dataset.mcap           the same images with calibration, truth, overlays
 //! ```
@@ -23,11 +24,16 @@ use std::time::{Duration, Instant};
 use rayon::prelude::*;
 use serde_json::json;
 
+use crate::camera::Camera;
 use crate::coverage::Rasterizer;
 use crate::error::{Result, SynthError};
 use crate::foxglove::McapWriter;
 use crate::scene::MarkerTruth;
-use crate::spec::DatasetSpec;
+use crate::spec::{DatasetSpec, Draw};
+
+/// Columns of `draws.csv` (sampled specs; documented in
+/// `datasets/README.md`).
+pub const DRAWS_COLUMNS: &[&str] = &["index", "marker_index", "factor", "value"];
 
 /// Columns of `truth.csv`, in order (documented in `datasets/README.md`).
 pub const TRUTH_COLUMNS: &[&str] = &[
@@ -78,10 +84,49 @@ pub const TRUTH_COLUMNS: &[&str] = &[
 /// Version of the dataset layout, in `dataset.json`.
 pub const FORMAT_VERSION: u32 = 1;
 
+/// A deterministic slice of a dataset: the images whose index is `k`
+/// modulo `n`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    /// This shard, `0..n`.
+    pub k: usize,
+    /// Number of shards.
+    pub n: usize,
+}
+
+impl Shard {
+    /// Parses `K/N` (`0 <= K < N`).
+    pub fn parse(s: &str) -> std::result::Result<Self, String> {
+        let (k, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("'{s}' is not K/N"))?;
+        let k: usize = k
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': K is not a whole number"))?;
+        let n: usize = n
+            .trim()
+            .parse()
+            .map_err(|_| format!("'{s}': N is not a whole number"))?;
+        if n == 0 || k >= n {
+            return Err(format!("'{s}': need 0 <= K < N"));
+        }
+        Ok(Self { k, n })
+    }
+
+    /// Whether image `index` belongs to the shard.
+    #[must_use]
+    pub fn contains(self, index: usize) -> bool {
+        index % self.n == self.k
+    }
+}
+
 /// Options of [`generate`].
 #[derive(Debug, Clone)]
 pub struct GenerateOptions {
-    /// Render only images whose index is a multiple of this (1 = all).
+    /// Render only one in this many images (1 = all): of a sweep, those
+    /// whose index is a multiple of it; of a sampled spec, the first scenes
+    /// with all their renders ([`DatasetSpec::thinned_indices`] says why).
     pub every: usize,
     /// Replace an existing output directory.
     pub force: bool,
@@ -167,6 +212,9 @@ struct Rendered {
     index: usize,
     png: Vec<u8>,
     markers: Vec<MarkerTruth>,
+    draws: Vec<Draw>,
+    /// The image's camera (sampled specs may draw its distortion).
+    camera: Camera,
     times: [Duration; 3],
 }
 
@@ -177,8 +225,15 @@ fn render_one(
     dir: &Path,
 ) -> Result<Rendered> {
     let t0 = Instant::now();
-    let scene = spec.scene(index)?;
+    let (scene, draws) = match spec.sampled_scene(index) {
+        Some(sampled) => {
+            let s = sampled?;
+            (s.scene, s.draws)
+        }
+        None => (spec.scene(index)?, Vec::new()),
+    };
     let out = scene.render(raster)?;
+    let camera = scene.rendering.camera;
     let t1 = Instant::now();
     let png = encode_png(&out.image)?;
     let t2 = Instant::now();
@@ -189,6 +244,8 @@ fn render_one(
         index,
         png,
         markers: out.markers,
+        draws,
+        camera,
         times: [t1 - t0, t2 - t1, t3 - t2],
     })
 }
@@ -263,14 +320,32 @@ fn truth_rows(
     Ok(())
 }
 
+/// `draws.csv` rows of image `index`.
+fn draw_rows(csv: &mut csv::Writer<BufWriter<File>>, index: usize, draws: &[Draw]) -> Result<()> {
+    for d in draws {
+        csv.write_record([
+            index.to_string(),
+            d.marker.map(|m| m.to_string()).unwrap_or_default(),
+            d.factor.to_string(),
+            d.value.to_string(),
+        ])?;
+    }
+    Ok(())
+}
+
 /// `dataset.json`.
-fn dataset_json(spec: &DatasetSpec, images: usize, every: usize) -> serde_json::Value {
+fn dataset_json(
+    spec: &DatasetSpec,
+    images: usize,
+    every: usize,
+    shard: Option<Shard>,
+) -> serde_json::Value {
     let spec_file = spec
         .path
         .file_name()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_default();
-    json!({
+    let mut v = json!({
         "format": "coppertag-synth-dataset",
         "format_version": FORMAT_VERSION,
         "generator": format!("coppertag-synth {}", env!("CARGO_PKG_VERSION")),
@@ -294,10 +369,27 @@ fn dataset_json(spec: &DatasetSpec, images: usize, every: usize) -> serde_json::
             "units": "metres and radians (value_deg in truth.csv for convenience)",
             "mcap_log_time_ns": "1e9 + index * 1e8"
         },
-        "camera": spec.camera,
+        "camera": spec.rendering.camera,
         "spec": spec.to_json(),
         "spec_toml": spec.text,
-    })
+    });
+    // Keys only sampled or sharded datasets have, so that older datasets
+    // keep their bytes.
+    if let Some(obj) = v.as_object_mut() {
+        if spec.sample.is_some() {
+            if let Some(files) = obj.get_mut("files").and_then(|f| f.as_object_mut()) {
+                files.insert("draws".into(), json!("draws.csv"));
+            }
+            obj.insert("draws_columns".into(), json!(DRAWS_COLUMNS));
+        }
+        if let Some(sh) = shard {
+            obj.insert(
+                "shard".into(),
+                json!({"k": sh.k, "n": sh.n, "rule": "images whose index % n == k"}),
+            );
+        }
+    }
+    v
 }
 
 /// Renders the dataset of `spec` into the directory `out`.
@@ -309,9 +401,27 @@ pub fn generate(
     opts: &GenerateOptions,
     progress: &(dyn Fn(usize, usize) + Sync),
 ) -> Result<GenerateReport> {
+    generate_shard(spec, out, opts, None, progress)
+}
+
+/// Renders one shard of the dataset of `spec` (all of it for `None`) into
+/// the directory `out`: the shard's images are byte for byte those of the
+/// whole dataset, and its `truth.csv`, `draws.csv` and `dataset.mcap` hold
+/// only its images.
+pub fn generate_shard(
+    spec: &DatasetSpec,
+    out: &Path,
+    opts: &GenerateOptions,
+    shard: Option<Shard>,
+    progress: &(dyn Fn(usize, usize) + Sync),
+) -> Result<GenerateReport> {
     let start = Instant::now();
     let every = opts.every.max(1);
-    let indices: Vec<usize> = (0..spec.image_count()).step_by(every).collect();
+    let indices: Vec<usize> = spec
+        .thinned_indices(every)
+        .into_iter()
+        .filter(|&i| shard.is_none_or(|sh| sh.contains(i)))
+        .collect();
     if out.exists() && !opts.force {
         return Err(SynthError::OutputExists {
             path: out.to_path_buf(),
@@ -339,7 +449,18 @@ pub fn generate(
         File::create(&truth_path).map_err(|e| SynthError::io(&truth_path, e))?,
     ));
     csv.write_record(TRUTH_COLUMNS)?;
-    let meta = dataset_json(spec, indices.len(), every);
+    let draws_path = dir.join("draws.csv");
+    let mut draws_csv = match spec.sample {
+        Some(_) => {
+            let mut w = csv::Writer::from_writer(BufWriter::new(
+                File::create(&draws_path).map_err(|e| SynthError::io(&draws_path, e))?,
+            ));
+            w.write_record(DRAWS_COLUMNS)?;
+            Some(w)
+        }
+        None => None,
+    };
+    let meta = dataset_json(spec, indices.len(), every, shard);
     let mcap_path = dir.join("dataset.mcap");
     let spec_name = spec.path.file_name().map_or_else(
         || "spec.toml".to_string(),
@@ -362,12 +483,15 @@ pub fn generate(
     let mut render_error = None;
     let written = std::thread::scope(|scope| {
         let (tx, rx) = std::sync::mpsc::sync_channel::<Rendered>(chunk * 2);
-        let (truth_path, mcap_path) = (&truth_path, &mcap_path);
+        let (truth_path, mcap_path, draws_path) = (&truth_path, &mcap_path, &draws_path);
         let writer = scope.spawn(move || -> Result<_> {
             let (mut t_csv, mut t_mcap) = (Duration::ZERO, Duration::ZERO);
             for (done, r) in rx.into_iter().enumerate() {
                 let t0 = Instant::now();
                 truth_rows(&mut csv, spec, r.index, &r.markers)?;
+                if let Some(w) = draws_csv.as_mut() {
+                    draw_rows(w, r.index, &r.draws)?;
+                }
                 let t1 = Instant::now();
                 let sweep = spec
                     .sweep
@@ -378,7 +502,7 @@ pub fn generate(
                     r.index,
                     &image_name(r.index),
                     &r.png,
-                    &spec.camera,
+                    &r.camera,
                     sweep,
                     &r.markers,
                 )?;
@@ -389,6 +513,9 @@ pub fn generate(
             let t0 = Instant::now();
             csv.flush().map_err(|e| SynthError::io(truth_path, e))?;
             drop(csv);
+            if let Some(mut w) = draws_csv {
+                w.flush().map_err(|e| SynthError::io(draws_path, e))?;
+            }
             let mut mcap_file = mcap.finish()?;
             mcap_file
                 .flush()

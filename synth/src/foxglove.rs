@@ -94,7 +94,10 @@ fn calibration_schema() -> Value {
     })
 }
 
-fn annotations_schema() -> Value {
+/// The `foxglove.ImageAnnotations` JSON schema (the fields we fill), used
+/// by datasets and by eval's runs alike.
+#[must_use]
+pub fn annotations_schema() -> Value {
     json!({
         "title": "foxglove.ImageAnnotations",
         "description": "Ground-truth overlays",
@@ -147,7 +150,9 @@ fn truth_schema() -> Value {
     })
 }
 
-fn stamp(t: u64) -> Value {
+/// A Foxglove `Time` (`sec`, `nsec`) of a log time in nanoseconds.
+#[must_use]
+pub fn stamp(t: u64) -> Value {
     json!({"sec": t / 1_000_000_000, "nsec": t % 1_000_000_000})
 }
 

@@ -20,10 +20,13 @@
 pub mod background;
 pub mod camera;
 pub mod coverage;
+pub mod cutout;
 pub mod dataset;
 pub mod effects;
 mod error;
+pub mod floor_occluders;
 pub mod foxglove;
+pub mod halton;
 pub mod markers;
 pub mod occlusion;
 pub mod polygon;
@@ -33,8 +36,9 @@ pub mod rng;
 pub mod scene;
 pub mod spec;
 pub mod svg;
+mod toml_input;
 
-pub use dataset::{generate, GenerateOptions, GenerateReport};
+pub use dataset::{generate, generate_shard, GenerateOptions, GenerateReport, Shard};
 pub use error::{Result, SynthError};
 pub use markers::{MarkerModel, MarkerSystem};
-pub use spec::DatasetSpec;
+pub use spec::{DatasetSpec, LoadOptions};

@@ -224,6 +224,36 @@ impl MarkerModel {
         })
     }
 
+    /// The first and last id of `system`'s family `family` (the system's
+    /// default family when `None`).
+    pub fn id_range(system: MarkerSystem, family: Option<&str>) -> Result<(u64, u64), SynthError> {
+        let family = family.unwrap_or(system.default_family());
+        let (name, count) = match system {
+            MarkerSystem::Coppertag => {
+                let fam = Family::by_name(family)?;
+                return Ok((fam.min_id(), fam.max_id()));
+            }
+            MarkerSystem::Apriltag3 | MarkerSystem::Aruco3 => {
+                let book = square_book(system);
+                (&book.name, book.codes.len())
+            }
+            MarkerSystem::Stag => {
+                let book = stag_book();
+                (&book.name, book.codes.len())
+            }
+        };
+        if family != name.as_str() {
+            return Err(SynthError::InvalidParameter {
+                name: "family",
+                reason: format!(
+                    "{} markers come in family {name}, not '{family}'",
+                    system.name()
+                ),
+            });
+        }
+        Ok((0, count as u64 - 1))
+    }
+
     /// Metres per marker unit when the printed image is `size_m` wide.
     #[must_use]
     pub fn metres_per_unit(&self, size_m: f64) -> f64 {

@@ -27,6 +27,9 @@ pub enum Stream {
     Occlusion = 3,
     /// Occluder textures.
     Texture = 4,
+    /// Choices of sampled scenes that are not low-discrepancy draws
+    /// (placement retries, shadow and glare shapes).
+    Sample = 5,
 }
 
 /// SplitMix64's output function: a bijective 64-bit mixer.

@@ -19,6 +19,7 @@ use coppertag::geometry::Paint;
 use crate::background::Background;
 use crate::camera::Camera;
 use crate::coverage::{Canvas, Rasterizer};
+use crate::cutout::{Cutout, DRAW_SUPERSAMPLE};
 use crate::effects::{self, Effects, Lighting, Sensor};
 use crate::error::{Result, SynthError};
 use crate::markers::{MarkerModel, CORNERS};
@@ -58,9 +59,11 @@ pub struct PlacedMarker {
     pub occlusion: Option<Arc<Occlusion>>,
 }
 
-/// Everything needed to render one image.
+/// The settings every image of a dataset shares (unless a sampled spec
+/// draws them per image): camera, print, background, lighting, sensor and
+/// effects.
 #[derive(Debug, Clone)]
-pub struct Scene {
+pub struct Rendering {
     /// Camera.
     pub camera: Camera,
     /// Print reflectances.
@@ -73,12 +76,24 @@ pub struct Scene {
     pub sensor: Sensor,
     /// Blur and compression.
     pub effects: Effects,
+}
+
+/// Everything needed to render one image.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Camera, print, background, lighting, sensor and effects.
+    pub rendering: Rendering,
     /// Markers.
     pub markers: Vec<PlacedMarker>,
     /// Dataset seed.
     pub seed: u64,
-    /// Image index in the dataset (with the seed, picks the random streams).
+    /// Scene number (with the seed, picks the random streams of the
+    /// background, occluders and textures): the image index, except in
+    /// sampled specs with `repeats`, where the repeats of one scene share
+    /// it.
     pub index: u64,
+    /// Picks the sensor-noise stream: the image index.
+    pub noise_index: u64,
 }
 
 /// A marker seen through the camera: maps marker units to pixels.
@@ -229,6 +244,48 @@ pub struct Rendered {
     pub markers: Vec<MarkerTruth>,
 }
 
+/// Paints a cutout (an image with alpha on the marker plane) on the pixels
+/// its outline `poly` (tiny-skia coordinates) touches: each pixel is the
+/// mean of [`DRAW_SUPERSAMPLE`]^2 sub-samples, each the cutout's bilinear
+/// premultiplied grey and alpha at the marker-plane point seen there,
+/// blended over the pixel ("over" compositing, Porter and Duff 1984).
+fn paint_cutout(
+    data: &mut [f32],
+    w: usize,
+    h: usize,
+    raster: &mut Rasterizer,
+    poly: &[[f64; 2]],
+    view: &MarkerView,
+    cut: &Cutout,
+) {
+    let n = DRAW_SUPERSAMPLE;
+    let inv = 1.0 / (n * n) as f32;
+    raster.coverage(
+        &[poly.to_vec()],
+        tiny_skia::FillRule::Winding,
+        w,
+        h,
+        |x, y, _| {
+            let (mut pm, mut a) = (0.0f32, 0.0f32);
+            for j in 0..n {
+                for i in 0..n {
+                    let q = [
+                        x as f64 + (i as f64 + 0.5) / n as f64 - 0.5,
+                        y as f64 + (j as f64 + 0.5) / n as f64 - 0.5,
+                    ];
+                    if let Some((p, _)) = view.unproject(q) {
+                        let (g, al) = cut.sample([p[0] + 0.5, p[1] + 0.5]);
+                        pm += g;
+                        a += al;
+                    }
+                }
+            }
+            let px = &mut data[y * w + x];
+            *px = pm * inv + *px * (1.0 - a * inv);
+        },
+    );
+}
+
 /// Depth of a marker's centre, for painting order.
 fn centre_depth(m: &PlacedMarker) -> f64 {
     m.pose.translation.z
@@ -237,14 +294,16 @@ fn centre_depth(m: &PlacedMarker) -> f64 {
 impl Scene {
     /// Renders the image and its ground truth. `raster` is scratch memory.
     pub fn render(&self, raster: &mut Rasterizer) -> Result<Rendered> {
-        let cam = &self.camera;
+        let cam = &self.rendering.camera;
         let (w, h) = (cam.width as usize, cam.height as usize);
         let mut canvas = Canvas::new(w, h, 0.0);
         let mut bg_rng = image_rng(self.seed, self.index, Stream::Background);
-        self.background.paint(&mut canvas, raster, &mut bg_rng);
+        self.rendering
+            .background
+            .paint(&mut canvas, raster, &mut bg_rng);
         let mut depth = cam
             .defocus
-            .map(|_| vec![self.background.distance_m as f32; w * h]);
+            .map(|_| vec![self.rendering.background.distance_m as f32; w * h]);
 
         let mut order: Vec<usize> = (0..self.markers.len()).collect();
         order.sort_by(|&a, &b| {
@@ -256,8 +315,8 @@ impl Scene {
             let unit = m.model.metres_per_unit(m.size_m);
             let view = MarkerView::new(cam, m.pose, unit, m.model.half_extent);
             let colour = |p: Paint| match p {
-                Paint::Black => self.print.ink as f32,
-                Paint::White => self.print.paper as f32,
+                Paint::Black => self.rendering.print.ink as f32,
+                Paint::White => self.rendering.print.paper as f32,
             };
             for el in &m.model.elements {
                 let (polys, rule) = element_polygons(el, &view).ok_or_else(|| {
@@ -300,6 +359,11 @@ impl Scene {
                     let app = o.appearance;
                     let flat = matches!(app.texture, crate::occlusion::Texture::None);
                     let data = &mut canvas.data;
+                    if let Some(cut) = &o.cutout {
+                        paint_cutout(data, w, h, raster, &poly, &view, cut);
+                        polygons_px.push(poly.iter().map(|p| [p[0] - 0.5, p[1] - 0.5]).collect());
+                        continue;
+                    }
                     raster.coverage(
                         std::slice::from_ref(&poly),
                         tiny_skia::FillRule::Winding,
@@ -331,7 +395,7 @@ impl Scene {
             truths[mi] = Some(self.truth(mi, &view, occ_truth)?);
         }
 
-        self.lighting.apply(&mut canvas, raster);
+        self.rendering.lighting.apply(&mut canvas, raster);
         if let Some(depth) = &depth {
             let sigma: Vec<f32> = depth
                 .iter()
@@ -339,12 +403,15 @@ impl Scene {
                 .collect();
             canvas = effects::variable_blur(&canvas, &sigma);
         }
-        if let Some(mb) = self.effects.motion_blur {
+        if let Some(sigma) = self.rendering.effects.blur_sigma_px {
+            canvas = effects::gaussian_blur(&canvas, sigma);
+        }
+        if let Some(mb) = self.rendering.effects.motion_blur {
             canvas = effects::motion_blur(&canvas, mb);
         }
-        let mut noise_rng = image_rng(self.seed, self.index, Stream::Noise);
-        let mut image = effects::quantise(&canvas, &self.sensor, &mut noise_rng);
-        if let Some(q) = self.effects.jpeg_quality {
+        let mut noise_rng = image_rng(self.seed, self.noise_index, Stream::Noise);
+        let mut image = effects::quantise(&canvas, &self.rendering.sensor, &mut noise_rng);
+        if let Some(q) = self.rendering.effects.jpeg_quality {
             image = effects::jpeg_round_trip(&image, q)?;
         }
         Ok(Rendered {
@@ -372,7 +439,7 @@ impl Scene {
                 ))
             })?;
         }
-        let corner_in_image = corners.map(|c| self.camera.contains(c));
+        let corner_in_image = corners.map(|c| self.rendering.camera.contains(c));
         let hidden = m
             .occlusion
             .as_ref()

@@ -253,7 +253,7 @@ fn dataset_files_agree_with_each_other() {
         }
         if topic == "/camera/calibration" {
             assert_eq!(v["distortion_model"], "plumb_bob");
-            assert_eq!(v["K"][2], spec.camera.cx);
+            assert_eq!(v["K"][2], spec.rendering.camera.cx);
         }
     }
     for t in [

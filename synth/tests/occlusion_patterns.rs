@@ -90,7 +90,7 @@ fn twenty_patterns_with_exact_coverage_and_the_right_corners() {
                         .all(|p| p.iter().all(|&v| (0.125..=0.875).contains(&v))));
                 }
             }
-            Scenario::Custom => unreachable!(),
+            other => unreachable!("{other:?}: the paper's patterns use the five scenarios"),
         }
         per_level.entry(level).or_default().push(o.scenario);
     }

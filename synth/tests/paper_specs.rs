@@ -32,7 +32,7 @@ fn every_paper_spec_has_the_papers_count_and_stays_in_frame() {
             let m = &spec.markers[0];
             assert_eq!(m.model.system, system);
             assert_eq!(m.size_m, 0.1, "every marker is printed 0.1 m x 0.1 m");
-            let cam = &spec.camera;
+            let cam = &spec.rendering.camera;
             assert_eq!((cam.width, cam.height), (1920, 1080));
             assert!((cam.fx - 16.0 / 0.00586).abs() < 1e-9 && cam.fx == cam.fy);
             assert_eq!((cam.cx, cam.cy), (959.5, 539.5));

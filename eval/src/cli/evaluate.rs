@@ -1,5 +1,6 @@
 //! `coppertag eval`: metrics of runs against their datasets' ground truth.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
@@ -7,11 +8,17 @@ use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::metrics::{evaluate, MatchRule, Summary};
 use coppertag_eval::runlog::RunLog;
+use coppertag_eval::shard;
 use coppertag_eval::truth::Dataset;
+use coppertag_eval::wild;
+use coppertag_eval::wild_summary::{summarise, WildSummary};
 
 #[derive(Args, Debug)]
-#[command(after_help = "Example:\n  coppertag eval runs/*.mcap -o results/\n\n\
+#[command(after_help = "Example:\n  coppertag eval runs/*.mcap -o results/\n  \
+    coppertag eval --wild runs/coppertag-shard-*.mcap -o results/\n\n\
     Writes results/summary.json (every figure, with per-image outcomes) and results/summary.csv.\n\
+    Shard runs (`coppertag run --shard K/N`) of one detector on one dataset are merged first: the\n\
+    result is exactly that of the unsharded run. All N shards must be given.\n\
     A run that cannot be read, or whose dataset is gone, is reported and skipped; the others are\n\
     still evaluated and written, and the exit code is 2.")]
 pub struct EvalArgs {
@@ -36,17 +43,91 @@ pub struct EvalArgs {
     #[arg(long, default_value_t = 0.05)]
     pub match_fraction: f64,
 
+    /// Also evaluate marker by marker for the wild benchmark (rough
+    /// detections, pose error, jitter, false positives per megapixel,
+    /// factor curves from draws.csv): writes wild.json, wild-systems.csv
+    /// and wild-factors.csv.
+    #[arg(long)]
+    pub wild: bool,
+
     /// Print the summaries (without per-image rows) as JSON on stdout.
     #[arg(long)]
     pub json: bool,
 }
 
-fn one(path: &Path, dataset: Option<&Path>, rule: MatchRule) -> Result<Summary> {
+/// A run ready to evaluate: its log (a sharded run's shards merged into
+/// one) and its dataset (the union of the shards' datasets), with the
+/// directories the dataset came from.
+pub struct Loaded {
+    /// The run.
+    pub run: RunLog,
+    /// Its dataset.
+    pub dataset: Dataset,
+    /// Dataset directories (one per shard when each shard had its own).
+    pub dirs: Vec<PathBuf>,
+}
+
+fn open_one(path: &Path, dataset: Option<&Path>) -> Result<(RunLog, Dataset)> {
     let run = RunLog::read(path)?;
     let dir = dataset.map_or_else(|| PathBuf::from(&run.info.dataset_dir), Path::to_path_buf);
     let ds = Dataset::open(&dir)
         .with_context(|| format!("run {} needs its dataset {}", path.display(), dir.display()))?;
-    Ok(evaluate(&run, &ds, rule))
+    Ok((run, ds))
+}
+
+/// Reads runs and their datasets. Shard runs (`coppertag run --shard`) of
+/// one detector on one dataset are merged into the run the unsharded
+/// command would have logged, wherever they appear among `runs`; the
+/// merged run takes the place of its first shard. Returns the runs and the
+/// errors, one per bad run or incomplete set of shards.
+pub fn load_all(runs: &[PathBuf], dataset: Option<&Path>) -> (Vec<Loaded>, Vec<String>) {
+    enum Item {
+        Whole(Box<Loaded>),
+        Shards(String),
+    }
+    let mut items = Vec::new();
+    let mut groups: BTreeMap<String, Vec<(RunLog, Dataset)>> = BTreeMap::new();
+    let mut errors = Vec::new();
+    for path in runs {
+        match open_one(path, dataset) {
+            Err(e) => errors.push(format!("{e:#}")),
+            Ok((run, ds)) if run.info.shard.is_empty() => {
+                let dirs = vec![ds.dir.clone()];
+                items.push(Item::Whole(Box::new(Loaded {
+                    run,
+                    dataset: ds,
+                    dirs,
+                })));
+            }
+            Ok((run, ds)) => {
+                let count = run.info.shard.split_once('/').map_or("", |s| s.1);
+                let key = format!("{} on {} in {count} shards", run.info.detector, ds.name);
+                let group = groups.entry(key.clone()).or_default();
+                if group.is_empty() {
+                    items.push(Item::Shards(key));
+                }
+                group.push((run, ds));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    for item in items {
+        match item {
+            Item::Whole(l) => out.push(*l),
+            Item::Shards(key) => {
+                let (logs, parts): (Vec<RunLog>, Vec<Dataset>) =
+                    groups.remove(&key).unwrap_or_default().into_iter().unzip();
+                let mut dirs: Vec<PathBuf> = parts.iter().map(|d| d.dir.clone()).collect();
+                dirs.sort();
+                dirs.dedup();
+                match shard::merge(logs).and_then(|run| shard::union(&parts).map(|d| (run, d))) {
+                    Ok((run, dataset)) => out.push(Loaded { run, dataset, dirs }),
+                    Err(e) => errors.push(format!("{key}: {e}")),
+                }
+            }
+        }
+    }
+    (out, errors)
 }
 
 /// Evaluates runs; returns the summaries and the errors, one per bad run.
@@ -55,15 +136,49 @@ pub fn evaluate_all(
     dataset: Option<&Path>,
     rule: MatchRule,
 ) -> (Vec<Summary>, Vec<String>) {
-    let mut out = Vec::new();
+    let (loaded, errors) = load_all(runs, dataset);
+    let summaries = loaded
+        .iter()
+        .map(|l| evaluate(&l.run, &l.dataset, rule))
+        .collect();
+    (summaries, errors)
+}
+
+/// The marker-by-marker evaluation of loaded runs on sampled datasets,
+/// aggregated; errors name the dataset whose draws or camera are bad.
+pub fn evaluate_wild(loaded: &[Loaded], rule: MatchRule) -> (WildSummary, Vec<String>) {
+    let mut runs = Vec::new();
     let mut errors = Vec::new();
-    for path in runs {
-        match one(path, dataset, rule) {
-            Ok(s) => out.push(s),
-            Err(e) => errors.push(format!("{e:#}")),
+    for l in loaded {
+        let dirs: Vec<&Path> = l.dirs.iter().map(PathBuf::as_path).collect();
+        match wild::open_extras(&dirs) {
+            Ok((draws, camera)) => runs.push(wild::evaluate(
+                &l.run,
+                &l.dataset,
+                draws.as_ref(),
+                &camera,
+                rule,
+            )),
+            Err(e) => errors.push(format!("{}: {e}", l.dataset.name)),
         }
     }
-    (out, errors)
+    (summarise(&runs), errors)
+}
+
+/// Writes wild.json, wild-systems.csv and wild-factors.csv into `dir`.
+pub fn write_wild(dir: &Path, w: &WildSummary) -> Result<()> {
+    let json = serde_json::to_string_pretty(w)?;
+    write_atomic(&dir.join("wild.json"), json.as_bytes())?;
+    write_atomic(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
+    write_atomic(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
+    Ok(())
+}
+
+/// Reads wild.json.
+pub fn read_wild(path: &Path) -> Result<WildSummary> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a wild summary", path.display()))
 }
 
 /// Writes summary.json and summary.csv into `dir`.
@@ -116,7 +231,16 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         min_px: args.match_px,
         side_fraction: args.match_fraction,
     };
-    let (summaries, errors) = evaluate_all(&args.runs, args.dataset.as_deref(), rule);
+    let (loaded, mut errors) = load_all(&args.runs, args.dataset.as_deref());
+    let summaries: Vec<Summary> = loaded
+        .iter()
+        .map(|l| evaluate(&l.run, &l.dataset, rule))
+        .collect();
+    if args.wild && !loaded.is_empty() {
+        let (w, wild_errors) = evaluate_wild(&loaded, rule);
+        errors.extend(wild_errors);
+        write_wild(&args.output, &w)?;
+    }
     for e in &errors {
         eprintln!("error: {e}");
     }

@@ -5,21 +5,28 @@ use std::path::PathBuf;
 use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
-use coppertag_eval::gate::{baseline_of, check, check_speed, Baseline, Tolerances};
+use coppertag_eval::gate::{
+    baseline_of, check, check_speed, check_wild, wild_entries_of, Baseline, Tolerances,
+};
 use coppertag_eval::speed::SpeedReport;
 
-use super::evaluate::read_summaries;
+use super::evaluate::{read_summaries, read_wild};
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:\n  \
     coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json \\\n      \
     --speed build/quick/results/speed.json\n  \
     coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json \\\n      \
-    --speed build/quick/results/speed.json --update\n\n\
+    --speed build/quick/results/speed.json --update\n  \
+    coppertag gate --baseline reports/baseline.json --summary build/quick/results/summary.json \\\n      \
+    --wild build/quick/results/wild.json --update-wild\n\n\
     Fails (exit 1) when a detection rate falls, wrong ids, false positives or duplicates grow, the median\n\
     or p95 corner error grows by more than --corner-px or --corner-fraction (the larger), or, for a peer,\n\
     the whole 95% noise band of our time over the peer's (from `coppertag speed`) lies above the\n\
-    baseline ratio times 1 + --time-ratio. Exit 2: unreadable input.")]
+    baseline ratio times 1 + --time-ratio, or, for CopperTag's wild-slice entry (from --wild), the\n\
+    detection rate falls or rough detections, wrong ids or false positives (per megapixel on tag-free\n\
+    frames) grow. --update-wild adds or replaces only the wild entries and leaves the rest of the\n\
+    baseline as it is. Exit 2: unreadable input.")]
 pub struct GateArgs {
     /// Committed baseline (JSON).
     #[arg(long)]
@@ -46,14 +53,52 @@ pub struct GateArgs {
     #[arg(long, default_value_t = Tolerances::default().time_ratio)]
     pub time_ratio: f64,
 
-    /// Write the summary as the new baseline instead of checking.
+    /// wild.json from `coppertag reproduce` or `coppertag eval --wild`
+    /// (required when the baseline has wild entries).
     #[arg(long)]
+    pub wild: Option<PathBuf>,
+
+    /// Write the summary as the new baseline instead of checking.
+    #[arg(long, conflicts_with = "update_wild")]
     pub update: bool,
+
+    /// Add (or replace) only the baseline's wild entries, from --wild,
+    /// keeping every other entry as it is.
+    #[arg(long, requires = "wild")]
+    pub update_wild: bool,
+}
+
+fn read_baseline(path: &std::path::Path) -> Result<Baseline> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not a baseline file", path.display()))
 }
 
 /// Runs the subcommand; returns whether the gate passed.
 pub fn run(args: &GateArgs) -> Result<bool> {
     let summaries = read_summaries(&args.summary)?;
+    let wild = args.wild.as_deref().map(read_wild).transpose()?;
+    if args.update_wild {
+        let mut b = read_baseline(&args.baseline)?;
+        let entries = wild.as_ref().map(wild_entries_of).unwrap_or_default();
+        if entries.is_empty() {
+            anyhow::bail!(
+                "{}: no gated system (coppertag) in the wild summary",
+                args.wild
+                    .as_deref()
+                    .unwrap_or(std::path::Path::new(""))
+                    .display()
+            );
+        }
+        b.wild = entries;
+        write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
+        eprintln!(
+            "wrote the wild entries of baseline {} ({} entries)",
+            args.baseline.display(),
+            b.wild.len()
+        );
+        return Ok(true);
+    }
     let speed: Option<SpeedReport> = match &args.speed {
         None => None,
         Some(p) => {
@@ -77,6 +122,7 @@ pub fn run(args: &GateArgs) -> Result<bool> {
         let b = baseline_of(
             &summaries,
             speed.as_ref(),
+            wild.as_ref(),
             "coppertag gate --update (make baseline)",
         );
         write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
@@ -87,10 +133,7 @@ pub fn run(args: &GateArgs) -> Result<bool> {
         );
         return Ok(true);
     }
-    let text = std::fs::read_to_string(&args.baseline)
-        .with_context(|| format!("cannot read {}", args.baseline.display()))?;
-    let baseline: Baseline = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not a baseline file", args.baseline.display()))?;
+    let baseline = read_baseline(&args.baseline)?;
     for (name, v) in [
         ("--corner-px", args.corner_px),
         ("--corner-fraction", args.corner_fraction),
@@ -106,6 +149,14 @@ pub fn run(args: &GateArgs) -> Result<bool> {
         time_ratio: args.time_ratio,
     };
     let mut fails = check(&baseline, &summaries, tol);
+    match &wild {
+        Some(w) => fails.extend(check_wild(&baseline, w)),
+        None if !baseline.wild.is_empty() => anyhow::bail!(
+            "{} has wild entries: give --wild (wild.json from `coppertag reproduce`)",
+            args.baseline.display()
+        ),
+        None => {}
+    }
     match &speed {
         Some(speed) => {
             if speed.options.slowdown != 1.0 {
@@ -129,8 +180,9 @@ pub fn run(args: &GateArgs) -> Result<bool> {
     }
     if fails.is_empty() {
         eprintln!(
-            "gate passed: {} entries, {} speed ratios checked",
+            "gate passed: {} entries, {} wild entries, {} speed ratios checked",
             baseline.entries.len(),
+            baseline.wild.len(),
             baseline.speed_ratio_vs.len()
         );
         return Ok(true);

@@ -10,13 +10,14 @@ use coppertag_eval::metrics::Summary;
 use coppertag_eval::report::{write_report, Machine};
 use coppertag_eval::resources;
 
-use super::evaluate::read_summaries;
+use super::evaluate::{read_summaries, read_wild};
 
 #[derive(Args, Debug)]
 #[command(
     after_help = "Example:\n  coppertag report --summary build/results/summary.json -o reports/\n\n\
     Writes README.md (tables, figures, what was run), table1.csv, table2.csv, robustness.csv,\n\
-    challenge.csv, fig7-*.svg/png and robustness-*.svg/png."
+    challenge.csv, fig7-*.svg/png and robustness-*.svg/png; with a wild.json, also the wild\n\
+    section, wild-systems.csv, wild-factors.csv and wild-*.svg/png."
 )]
 pub struct ReportArgs {
     /// summary.json from `coppertag eval`.
@@ -26,6 +27,11 @@ pub struct ReportArgs {
     /// Output directory.
     #[arg(short, long, default_value = "reports")]
     pub output: PathBuf,
+
+    /// wild.json from `coppertag eval --wild` (default: the one beside
+    /// --summary, if any): adds the sampled-scene section.
+    #[arg(long)]
+    pub wild: Option<PathBuf>,
 
     /// The command that produced the runs, quoted in the report.
     #[arg(long, default_value = "make reproduce")]
@@ -71,6 +77,12 @@ pub fn preamble(summaries: &[Summary], made_by: &str) -> String {
 /// Runs the subcommand.
 pub fn run(args: &ReportArgs) -> Result<()> {
     let summaries = read_summaries(&args.summary)?;
+    let beside = args.summary.with_file_name("wild.json");
+    let wild = match &args.wild {
+        Some(p) => Some(read_wild(p)?),
+        None if beside.exists() => Some(read_wild(&beside)?),
+        None => None,
+    };
     let machine = Machine {
         cores: std::thread::available_parallelism().map_or(1, |n| n.get()),
         memory: resources::total_memory().unwrap_or(0),
@@ -80,6 +92,7 @@ pub fn run(args: &ReportArgs) -> Result<()> {
         &args.output,
         machine,
         &preamble(&summaries, &args.made_by),
+        wild.as_ref(),
     )?;
     write_atomic(&args.output.join("README.md"), md.as_bytes())?;
     eprintln!("wrote {}", args.output.join("README.md").display());

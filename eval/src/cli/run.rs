@@ -6,6 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::runlog;
 use coppertag_eval::runner::{self, DetectorSpec};
+use coppertag_eval::shard::Shard;
 use coppertag_eval::truth::Dataset;
 
 use super::progress::bar;
@@ -14,7 +15,8 @@ use super::progress::bar;
 #[command(after_help = "Examples:\n  \
     coppertag run --dataset build/datasets/coppertag-distance-z --detector coppertag -o runs/coppertag.mcap\n  \
     coppertag run --dataset build/datasets/apriltag3-rotated-x --detector apriltag3 -o runs/apriltag3.mcap\n  \
-    coppertag run --dataset DIR --command 'python3 my_adapter.py' --name mine -o runs/mine.mcap\n\n\
+    coppertag run --dataset DIR --command 'python3 my_adapter.py' --name mine -o runs/mine.mcap\n  \
+    coppertag run --dataset DIR --detector coppertag --shard 3/16 -o runs/coppertag-3.mcap\n\n\
     Peers run as subprocesses speaking the line protocol of eval/peers/README.md.")]
 pub struct RunArgs {
     /// Dataset directory made by `coppertag synth`.
@@ -47,6 +49,12 @@ pub struct RunArgs {
     #[arg(long, default_value = "eval/peers")]
     pub peers: PathBuf,
 
+    /// Only shard K of N: the images whose index i has i % N == K (for
+    /// example 0/8). `coppertag eval` given the N shard logs gives the
+    /// unsharded result. See datasets/cluster/README.md.
+    #[arg(long, value_name = "K/N")]
+    pub shard: Option<Shard>,
+
     /// Print the run's totals as one JSON line.
     #[arg(long)]
     pub json: bool,
@@ -68,12 +76,21 @@ pub fn run(args: &RunArgs) -> Result<()> {
     };
     let dataset = Dataset::open(&args.dataset)
         .with_context(|| format!("cannot open dataset {}", args.dataset.display()))?;
+    let total = args.shard.map_or(dataset.images.len(), |s| {
+        dataset
+            .images
+            .iter()
+            .filter(|(i, _)| s.contains(*i))
+            .count()
+    });
     let pb = bar(
-        dataset.images.len(),
+        total,
         &format!("{} {}", spec.name(), dataset.name),
         args.quiet,
     );
-    let out = runner::run(&spec, &dataset, |done, _| pb.set_position(done as u64))?;
+    let out = runner::run_shard(&spec, &dataset, args.shard, |done, _| {
+        pb.set_position(done as u64)
+    })?;
     pb.finish_and_clear();
     runlog::save(&args.output, &out)?;
     let found: usize = out.results.iter().map(|r| r.result.detections.len()).sum();

@@ -5,14 +5,16 @@ use std::time::Duration;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use coppertag_synth::{generate, DatasetSpec, GenerateOptions};
+use coppertag_synth::{generate_shard, DatasetSpec, GenerateOptions, LoadOptions, Shard};
 use indicatif::{ProgressBar, ProgressStyle};
 
 #[derive(Args, Debug)]
 #[command(after_help = "Examples:\n  \
     coppertag synth datasets/paper/coppertag-distance-z.toml -o runs/coppertag-distance-z\n  \
     coppertag synth datasets/paper/stag-rotated-x.toml -o runs/stag-rotated-x --quick\n  \
-    coppertag synth datasets/examples/robustness.toml -o runs/rob --force --timings\n\n\
+    coppertag synth datasets/examples/robustness.toml -o runs/rob --force --timings\n  \
+    coppertag synth datasets/wild/coppertag-wild.toml -o runs/wild-3 --shard 3/16\n  \
+    coppertag synth datasets/wild/fp-photos.toml -o runs/fp-photos --photos build/photos\n\n\
     Writes <dir>/images/*.png, truth.csv, dataset.json and dataset.mcap (see datasets/README.md).\n\
     The directory is built beside <dir> under a hidden name and renamed into place at the end;\n\
     on any error nothing is left behind. Same spec and seed, same bytes.")]
@@ -24,8 +26,10 @@ pub struct SynthArgs {
     #[arg(short, long)]
     pub output: PathBuf,
 
-    /// Render only every Nth image (image names and indices stay those of
-    /// the full dataset).
+    /// Render only one in N images (image names and indices stay those of
+    /// the full dataset): every Nth image of a sweep; of a sampled spec,
+    /// its first 1/N of scenes with all their renders (a Halton prefix
+    /// keeps the spread of every factor).
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     pub every: u64,
 
@@ -36,6 +40,18 @@ pub struct SynthArgs {
     /// Replace the output directory if it exists.
     #[arg(long)]
     pub force: bool,
+
+    /// Render only shard K of N (0 <= K < N): the images whose index % N
+    /// == K, byte for byte as in the whole dataset; truth.csv, draws.csv and
+    /// dataset.mcap hold only those images.
+    #[arg(long, value_name = "K/N", value_parser = parse_shard)]
+    pub shard: Option<Shard>,
+
+    /// Read the background photographs from DIR instead of the spec's
+    /// sample.background_dir (e.g. a directory written by
+    /// eval/peers/export_photos.py); the spec must have that key.
+    #[arg(long, value_name = "DIR")]
+    pub photos: Option<PathBuf>,
 
     /// Use this seed instead of the spec's.
     #[arg(long)]
@@ -54,22 +70,33 @@ pub struct SynthArgs {
     pub quiet: bool,
 }
 
+fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
+    Shard::parse(s)
+}
+
 fn ms_per(d: Duration, n: usize) -> f64 {
     d.as_secs_f64() * 1000.0 / n.max(1) as f64
 }
 
 /// Runs `coppertag synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
-    let mut spec = DatasetSpec::load(&args.spec)?;
+    let load = LoadOptions {
+        photos_dir: args.photos.clone(),
+    };
+    let mut spec = DatasetSpec::load_with(&args.spec, &load)?;
     if let Some(seed) = args.seed {
-        spec.seed = seed;
+        spec.set_seed(seed);
     }
     let every = if args.quick { 10 } else { args.every as usize };
     let opts = GenerateOptions {
         every,
         force: args.force,
     };
-    let total = spec.image_count().div_ceil(every);
+    let total = spec
+        .thinned_indices(every)
+        .into_iter()
+        .filter(|&i| args.shard.is_none_or(|sh| sh.contains(i)))
+        .count();
     let bar = if args.quiet {
         ProgressBar::hidden()
     } else {
@@ -82,7 +109,7 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     );
     bar.set_message(spec.name.clone());
     let work = || {
-        generate(&spec, &args.output, &opts, &|done, _| {
+        generate_shard(&spec, &args.output, &opts, args.shard, &|done, _| {
             bar.set_position(done as u64)
         })
     };

@@ -1,0 +1,278 @@
+//! The "wild" section of `reports/README.md`: the sampled-scene benchmark's
+//! table (a row per system) and its factor curves, each figure with a
+//! sentence saying what it shows; CSVs beside them.
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use crate::atomic::write_atomic_in_new_dir;
+use crate::error::Result;
+use crate::plot::{line_chart, Chart, Series};
+use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
+use crate::wild_summary::{FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_RATE};
+
+fn display(system: &str) -> String {
+    match system {
+        "aruco3" => "ArUco3".into(),
+        "apriltag3" => "AprilTag3".into(),
+        "stag" => "STag".into(),
+        "coppertag" => "CopperTag".into(),
+        other => other.into(),
+    }
+}
+
+fn pct(v: f64) -> String {
+    format!("{:.1}%", 100.0 * v)
+}
+
+fn num(v: Option<f64>, digits: usize) -> String {
+    v.map_or("-".into(), |x| format!("{x:.digits$}"))
+}
+
+/// What a factor is, for axis labels and captions.
+fn describe(factor: &str) -> String {
+    let known = match factor {
+        "side_px" => "side of the marker square in the image (px)",
+        "distance_m" => "distance to the camera (m)",
+        "tilt_x_deg" => "tilt about the x axis (degrees)",
+        "tilt_y_deg" => "tilt about the y axis (degrees)",
+        "roll_deg" => "roll in the image plane (degrees)",
+        "pos_x" => "horizontal position in the frame",
+        "pos_y" => "vertical position in the frame",
+        "contrast" => "print contrast",
+        "clutter_density" => "background clutter density",
+        "defocus_px" => "defocus blur (px)",
+        "motion_blur_px" => "motion blur (px)",
+        "read_noise_dn" => "sensor read noise (DN)",
+        "jpeg_quality" => "JPEG quality",
+        "occluder_kind" => "occluder kind",
+        "occluder_coverage" => "share of the marker square occluded",
+        "markers_per_frame" => "markers per frame",
+        _ => "",
+    };
+    if known.is_empty() {
+        factor.replace('_', " ")
+    } else {
+        known.into()
+    }
+}
+
+fn curve_figure(c: &FactorCurve, dir: &Path, out: &mut String) -> Result<()> {
+    let mut series: Vec<Series> = Vec::new();
+    for p in &c.points {
+        let label = display(&p.system);
+        if series.last().is_none_or(|s| s.label != label) {
+            series.push(Series {
+                label,
+                points: Vec::new(),
+            });
+        }
+        if let (Some(x), Some(s)) = (p.centre.filter(|_| p.markers > 0), series.last_mut()) {
+            s.points.push((x, 100.0 * p.rate()));
+        }
+    }
+    let stem = format!("wild-{}", c.factor);
+    let what = describe(&c.factor);
+    let reading = curve_reading(c);
+    line_chart(
+        &dir.join(&stem),
+        &Chart {
+            title: &format!("Detection rate against {what}"),
+            x_label: &what,
+            y_label: "found, correct or rough (%)",
+            y_range: Some((0.0, 102.0)),
+        },
+        &series,
+    )?;
+    let _ = writeln!(
+        out,
+        "### {}\n\n![{stem}]({stem}.png)\n\nThe share of markers each system found (correct or rough) against the \
+         {what}, one point per bin (bins hold about equally many markers; SVG beside it, bins, counts and \
+         the rough share in `wild-factors.csv`). {reading}\n",
+        c.factor
+    );
+    Ok(())
+}
+
+/// One sentence on what a curve shows: each system's rate in the lowest
+/// and the highest bin of the factor.
+fn curve_reading(c: &FactorCurve) -> String {
+    let Some(bins) = &c.bins else {
+        return String::new();
+    };
+    let mut parts = Vec::new();
+    let mut systems: Vec<&str> = Vec::new();
+    for p in &c.points {
+        if !systems.contains(&p.system.as_str()) {
+            systems.push(&p.system);
+        }
+    }
+    for sys in systems {
+        let pts: Vec<_> = c
+            .points
+            .iter()
+            .filter(|p| p.system == sys && p.markers > 0)
+            .collect();
+        if let (Some(first), Some(last)) = (pts.first(), pts.last()) {
+            parts.push(format!(
+                "{} {} -> {}",
+                display(sys),
+                pct(first.rate()),
+                pct(last.rate())
+            ));
+        }
+    }
+    if parts.is_empty() || bins.len() < 2 {
+        return String::new();
+    }
+    let (lo, _) = bins.range(0);
+    let (_, hi) = bins.range(bins.len() - 1);
+    format!(
+        "From the lowest bin (from {}) to the highest (to {}): {}.",
+        short(lo),
+        short(hi),
+        parts.join(", ")
+    )
+}
+
+fn short(v: f64) -> String {
+    if v.abs() >= 100.0 || v == v.trunc() {
+        format!("{v:.0}")
+    } else if v.abs() >= 1.0 {
+        format!("{v:.1}")
+    } else {
+        format!("{v:.2}")
+    }
+}
+
+/// False positives per megapixel, all tag-free sets and each.
+fn fp_cell(r: &crate::wild_summary::SystemRow) -> String {
+    let all = num(r.false_positives_per_mp, 3);
+    if r.false_positives_per_mp_by_set.len() < 2 {
+        return all;
+    }
+    let each: Vec<String> = r
+        .false_positives_per_mp_by_set
+        .iter()
+        .map(|(k, v)| format!("{k} {v:.3}"))
+        .collect();
+    format!("{all} ({})", each.join(", "))
+}
+
+fn category_table(c: &FactorCurve, out: &mut String) {
+    let mut labels: Vec<&str> = c.points.iter().map(|p| p.label.as_str()).collect();
+    labels.sort();
+    labels.dedup();
+    let mut systems: Vec<&str> = Vec::new();
+    for p in &c.points {
+        if !systems.contains(&p.system.as_str()) {
+            systems.push(&p.system);
+        }
+    }
+    let _ = writeln!(
+        out,
+        "### {}\n\nThe share of markers each system found (correct or rough) for each {}; n markers in brackets.\n",
+        c.factor,
+        describe(&c.factor)
+    );
+    let _ = writeln!(
+        out,
+        "| {} | {} |\n|---|{}",
+        c.factor,
+        systems
+            .iter()
+            .map(|s| display(s))
+            .collect::<Vec<_>>()
+            .join(" | "),
+        "---|".repeat(systems.len())
+    );
+    for l in labels {
+        let cells: Vec<String> = systems
+            .iter()
+            .map(|s| {
+                c.points
+                    .iter()
+                    .find(|p| p.system == *s && p.label == l)
+                    .map_or("-".into(), |p| format!("{} ({})", pct(p.rate()), p.markers))
+            })
+            .collect();
+        let _ = writeln!(out, "| {l} | {} |", cells.join(" | "));
+    }
+    out.push('\n');
+}
+
+/// Writes the wild section's figures and CSVs into `dir` and returns its
+/// Markdown.
+pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "\n## In the wild: sampled scenes\n\n\
+         Scenes sampled over wide ranges of pose, size, occluders, background, lighting and camera effects \
+         (`datasets/wild/`; datasets: {}), the same scenes for every system at equal marker-square size. \
+         **Found** = correct + rough: a marker is *correct* when the id is right and every corner lies within \
+         3 px or 5% of the side (the larger), *rough* when the id is right but some corner is farther (a robot \
+         would trust it). Pose comes from each system's reported corners, undistorted, through one solver \
+         (IPPE, the known marker-square side); a pose is *flipped* when its rotation is more than {FLIP_ROTATION_DEG:.0} deg \
+         off, or when IPPE's other solution is closer to the truth while the two are at least {FLIP_SEPARATION_DEG:.0} deg apart. \
+         Jitter is the median, over scenes rendered several times with fresh sensor noise (at least \
+         {JITTER_MIN_RENDERS} renders found), of the spread of the corners (px, RMS over the four), of the \
+         translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
+         images. Minimum size: the smallest bin of the marker's side in pixels with at least {:.0}% found. \
+         Every system runs with its library's default settings, as in the sets above (a new user's first \
+         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search, which costs \
+         markers under about 40 px).\n",
+        if w.datasets.is_empty() {
+            "none".into()
+        } else {
+            w.datasets.join(", ")
+        },
+        100.0 * MIN_DETECTABLE_RATE
+    );
+    out.push_str(
+        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 (ms) | min. size (px) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for r in &w.systems {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} | {} |",
+            display(&r.system),
+            r.markers,
+            pct(r.detection_rate),
+            pct(r.rough_rate),
+            r.wrong_ids,
+            fp_cell(r),
+            r.translation_mm.median,
+            r.translation_mm.p95,
+            r.translation_pct.median,
+            r.translation_pct.p95,
+            r.rotation_deg.median,
+            r.rotation_deg.p95,
+            pct(r.flipped_rate),
+            num(r.jitter_corner_px, 3),
+            num(r.jitter_translation_mm, 2),
+            num(r.jitter_rotation_deg, 3),
+            r.jitter_groups,
+            r.time_ms.median,
+            r.time_ms.p95,
+            r.min_detectable_side_px
+                .map_or(format!("no bin >= {:.0}%", 100.0 * MIN_DETECTABLE_RATE), |(lo, hi)| {
+                    format!("{lo:.0}-{hi:.0}")
+                })
+        );
+    }
+    out.push_str(
+        "\nPer-system figures in `wild-systems.csv`, factor bins in `wild-factors.csv`.\n\n",
+    );
+    for c in &w.factors {
+        if c.bins.is_some() {
+            curve_figure(c, dir, &mut out)?;
+        } else {
+            category_table(c, &mut out);
+        }
+    }
+    write_atomic_in_new_dir(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
+    write_atomic_in_new_dir(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
+    Ok(out)
+}

@@ -1,0 +1,636 @@
+//! The wild benchmark's figures per system, from the marker-by-marker
+//! outcomes of [`crate::wild`]: detection and rough rates, wrong ids,
+//! false positives per megapixel, pose error, jitter, time, and detection
+//! rate against every drawn factor.
+//!
+//! Jitter: the renders of one scene with fresh sensor noise share a
+//! `jitter_group` draw. For each group, marker and system with at least
+//! [`JITTER_MIN_RENDERS`] renders found: the spread of each corner (RMS
+//! distance from its mean position, with the n - 1 divisor) combined over
+//! the four corners as their root mean square; the spread of the estimated
+//! translation (mm) likewise; and of the rotation, the RMS angle to the
+//! renders' mean rotation (the chordal L2 mean: the sum of the rotation
+//! matrices projected back onto SO(3)). The report gives the median over
+//! groups. Only the first render of a group counts towards detection, pose
+//! and factor figures, so a scene rendered K times weighs as one.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{Matrix3, Vector3};
+use serde::{Deserialize, Serialize};
+
+use crate::binning::Bins;
+use crate::draws::{FactorValue, JITTER_GROUP};
+use crate::metrics::Stats;
+use crate::pose_error::{angle_between, rotation_of};
+use crate::report::SYSTEMS;
+use crate::wild::{MarkerOutcome, Status, WildRun, SIDE_FACTOR};
+
+/// Fewest found renders of a scene for its jitter to be measured.
+pub const JITTER_MIN_RENDERS: usize = 2;
+
+/// Share of markers a size bin must find for the system to "detect" that
+/// size (the issue's definition of the minimum detectable size).
+pub const MIN_DETECTABLE_RATE: f64 = 0.9;
+
+/// One system's row of the wild table.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SystemRow {
+    /// Detector.
+    pub system: String,
+    /// Images of tagged sets (first renders of jitter groups only).
+    pub images: usize,
+    /// True markers.
+    pub markers: usize,
+    /// Found with every corner within the match distance.
+    pub correct: usize,
+    /// Found with the right id but a corner farther.
+    pub rough: usize,
+    /// Not found.
+    pub missed: usize,
+    /// (correct + rough) / markers.
+    pub detection_rate: f64,
+    /// rough / markers.
+    pub rough_rate: f64,
+    /// Detections of another id on a true marker.
+    pub wrong_ids: usize,
+    /// False positives on tagged sets.
+    pub false_positives_tagged: usize,
+    /// Images of tag-free sets.
+    pub tag_free_images: usize,
+    /// Their area, megapixels.
+    pub tag_free_megapixels: f64,
+    /// Detections on them.
+    pub tag_free_false_positives: usize,
+    /// Those per megapixel; `None` without a tag-free set.
+    pub false_positives_per_mp: Option<f64>,
+    /// False positives per megapixel of each tag-free set, by dataset
+    /// (procedural clutter and natural photographs differ).
+    #[serde(default)]
+    pub false_positives_per_mp_by_set: BTreeMap<String, f64>,
+    /// Translation error, mm, over found markers with a pose.
+    pub translation_mm: Stats,
+    /// Translation error, % of the true distance.
+    pub translation_pct: Stats,
+    /// Rotation error, degrees.
+    pub rotation_deg: Stats,
+    /// Share of those poses that are flipped.
+    pub flipped_rate: f64,
+    /// Jitter groups measured.
+    pub jitter_groups: usize,
+    /// Median over groups of the corner spread, px.
+    pub jitter_corner_px: Option<f64>,
+    /// Median over groups of the translation spread, mm.
+    pub jitter_translation_mm: Option<f64>,
+    /// Median over groups of the rotation spread, degrees.
+    pub jitter_rotation_deg: Option<f64>,
+    /// Detection time per image over every wild image, ms.
+    pub time_ms: Stats,
+    /// The smallest side-in-pixels bin with at least
+    /// [`MIN_DETECTABLE_RATE`] found, as (low, high) px.
+    pub min_detectable_side_px: Option<(f64, f64)>,
+}
+
+/// One bin (or category) of one factor for one system.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct CurvePoint {
+    /// Detector.
+    pub system: String,
+    /// Bin number (categories in label order).
+    pub bin: usize,
+    /// Bin or category as text.
+    pub label: String,
+    /// Where the bin is drawn (`None` for categories).
+    pub centre: Option<f64>,
+    /// Markers in the bin.
+    pub markers: usize,
+    /// Correct ones.
+    pub correct: usize,
+    /// Rough ones.
+    pub rough: usize,
+}
+
+impl CurvePoint {
+    /// (correct + rough) / markers.
+    pub fn rate(&self) -> f64 {
+        (self.correct + self.rough) as f64 / self.markers.max(1) as f64
+    }
+}
+
+/// Detection rate against one factor.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct FactorCurve {
+    /// Factor name, as in `draws.csv`.
+    pub factor: String,
+    /// Bins of a numeric factor; `None` for a categorical one.
+    pub bins: Option<Bins>,
+    /// One point per system and bin.
+    pub points: Vec<CurvePoint>,
+}
+
+/// Everything the wild section reports.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct WildSummary {
+    /// Datasets evaluated, by name.
+    pub datasets: Vec<String>,
+    /// One row per system, in the paper's order.
+    pub systems: Vec<SystemRow>,
+    /// One curve per factor, by name.
+    pub factors: Vec<FactorCurve>,
+}
+
+/// Systems in report order: the paper's four first, then others by name.
+fn system_order(runs: &[WildRun]) -> Vec<String> {
+    let mut names: Vec<String> = runs.iter().map(|r| r.detector.clone()).collect();
+    names.sort();
+    names.dedup();
+    let rank = |n: &String| SYSTEMS.iter().position(|s| s == n).unwrap_or(SYSTEMS.len());
+    names.sort_by_key(|n| (rank(n), n.clone()));
+    names
+}
+
+/// The outcomes that count towards detection, pose and factor figures:
+/// every marker once, the first render of a jitter group standing for the
+/// group.
+fn counted(run: &WildRun) -> Vec<&MarkerOutcome> {
+    let mut first: BTreeMap<(String, usize), usize> = BTreeMap::new();
+    for o in &run.outcomes {
+        if let Some(g) = o.factors.get(JITTER_GROUP) {
+            let e = first.entry((g.label(), o.marker_index)).or_insert(o.index);
+            *e = (*e).min(o.index);
+        }
+    }
+    run.outcomes
+        .iter()
+        .filter(|o| {
+            o.factors
+                .get(JITTER_GROUP)
+                .is_none_or(|g| first[&(g.label(), o.marker_index)] == o.index)
+        })
+        .collect()
+}
+
+fn sample_spread(points: &[Vector3<f64>]) -> f64 {
+    let n = points.len() as f64;
+    let mean = points.iter().sum::<Vector3<f64>>() / n;
+    (points
+        .iter()
+        .map(|p| (p - mean).norm_squared())
+        .sum::<f64>()
+        / (n - 1.0))
+        .sqrt()
+}
+
+/// Jitter of one group: (corner px, translation mm, rotation deg).
+fn jitter_of(found: &[&MarkerOutcome]) -> Option<(f64, Option<f64>, Option<f64>)> {
+    let corners: Vec<&[[f64; 2]; 4]> = found.iter().filter_map(|o| o.corners.as_ref()).collect();
+    if corners.len() < JITTER_MIN_RENDERS {
+        return None;
+    }
+    let mut var = 0.0;
+    for c in 0..4 {
+        let pts: Vec<Vector3<f64>> = corners
+            .iter()
+            .map(|q| Vector3::new(q[c][0], q[c][1], 0.0))
+            .collect();
+        var += sample_spread(&pts).powi(2);
+    }
+    let corner_px = (var / 4.0).sqrt();
+    let poses: Vec<_> = found.iter().filter_map(|o| o.pose).collect();
+    if poses.len() < JITTER_MIN_RENDERS {
+        return Some((corner_px, None, None));
+    }
+    let t: Vec<Vector3<f64>> = poses
+        .iter()
+        .map(|p| Vector3::from(p.translation) * 1e3)
+        .collect();
+    let rots: Vec<Matrix3<f64>> = poses.iter().map(|p| rotation_of(p.rvec)).collect();
+    let sum: Matrix3<f64> = rots.iter().sum();
+    let svd = sum.svd(true, true);
+    let (Some(u), Some(v_t)) = (svd.u, svd.v_t) else {
+        return Some((corner_px, Some(sample_spread(&t)), None));
+    };
+    let d = (u * v_t).determinant().signum();
+    let mean = u * Matrix3::from_diagonal(&Vector3::new(1.0, 1.0, d)) * v_t;
+    let ss: f64 = rots.iter().map(|r| angle_between(&mean, r).powi(2)).sum();
+    let rot_deg = (ss / (rots.len() as f64 - 1.0)).sqrt().to_degrees();
+    Some((corner_px, Some(sample_spread(&t)), Some(rot_deg)))
+}
+
+fn median(v: &[f64]) -> Option<f64> {
+    (!v.is_empty()).then(|| Stats::of(v).median)
+}
+
+fn share(n: usize, of: usize) -> f64 {
+    if of == 0 {
+        0.0
+    } else {
+        n as f64 / of as f64
+    }
+}
+
+/// Aggregates wild runs into the report's figures.
+pub fn summarise(runs: &[WildRun]) -> WildSummary {
+    let systems = system_order(runs);
+    let mut datasets: Vec<String> = runs.iter().map(|r| r.dataset.clone()).collect();
+    datasets.sort();
+    datasets.dedup();
+    let curves = factor_curves(runs, &systems);
+    let mut rows = Vec::new();
+    for sys in &systems {
+        let mine: Vec<&WildRun> = runs.iter().filter(|r| &r.detector == sys).collect();
+        let tagged: Vec<&&WildRun> = mine.iter().filter(|r| !r.tag_free).collect();
+        let free: Vec<&&WildRun> = mine.iter().filter(|r| r.tag_free).collect();
+        let outcomes: Vec<&MarkerOutcome> = tagged.iter().flat_map(|r| counted(r)).collect();
+        let count = |s: Status| outcomes.iter().filter(|o| o.status == s).count();
+        let (correct, rough, missed) = (
+            count(Status::Correct),
+            count(Status::Rough),
+            count(Status::Missed),
+        );
+        let markers = outcomes.len();
+        let poses: Vec<_> = outcomes.iter().filter_map(|o| o.pose).collect();
+        let pick = |f: fn(&crate::pose_error::PoseError) -> f64| {
+            Stats::of(&poses.iter().map(f).collect::<Vec<_>>())
+        };
+        // Jitter groups: (dataset, group, marker) -> found renders.
+        let mut groups: BTreeMap<(String, String, usize), Vec<&MarkerOutcome>> = BTreeMap::new();
+        for r in &tagged {
+            for o in r.outcomes.iter().filter(|o| o.found()) {
+                if let Some(g) = o.factors.get(JITTER_GROUP) {
+                    groups
+                        .entry((r.dataset.clone(), g.label(), o.marker_index))
+                        .or_default()
+                        .push(o);
+                }
+            }
+        }
+        let (mut jc, mut jt, mut jr) = (Vec::new(), Vec::new(), Vec::new());
+        for found in groups.values() {
+            if let Some((c, t, r)) = jitter_of(found) {
+                jc.push(c);
+                jt.extend(t);
+                jr.extend(r);
+            }
+        }
+        let times: Vec<f64> = mine
+            .iter()
+            .flat_map(|r| r.times_ms.iter().copied())
+            .collect();
+        let fp_free: usize = free.iter().map(|r| r.false_positives).sum();
+        let mp_free: f64 = free.iter().map(|r| r.megapixels).sum();
+        let min_side = curves
+            .iter()
+            .find(|c| c.factor == SIDE_FACTOR)
+            .and_then(|c| {
+                let bins = c.bins.as_ref()?;
+                c.points
+                    .iter()
+                    .filter(|p| &p.system == sys && p.markers > 0)
+                    .find(|p| p.rate() >= MIN_DETECTABLE_RATE)
+                    .map(|p| bins.range(p.bin))
+            });
+        rows.push(SystemRow {
+            system: sys.clone(),
+            images: {
+                let mut idx: Vec<(String, usize)> = tagged
+                    .iter()
+                    .flat_map(|r| {
+                        counted(r)
+                            .into_iter()
+                            .map(move |o| (r.dataset.clone(), o.index))
+                    })
+                    .collect();
+                idx.sort();
+                idx.dedup();
+                idx.len()
+            },
+            markers,
+            correct,
+            rough,
+            missed,
+            detection_rate: share(correct + rough, markers),
+            rough_rate: share(rough, markers),
+            wrong_ids: tagged.iter().map(|r| r.wrong_ids).sum(),
+            false_positives_tagged: tagged.iter().map(|r| r.false_positives).sum(),
+            tag_free_images: free.iter().map(|r| r.images).sum(),
+            tag_free_megapixels: mp_free,
+            tag_free_false_positives: fp_free,
+            false_positives_per_mp: (mp_free > 0.0).then(|| fp_free as f64 / mp_free),
+            false_positives_per_mp_by_set: {
+                let mut by: BTreeMap<String, (usize, f64)> = BTreeMap::new();
+                for r in &free {
+                    let e = by.entry(r.dataset.clone()).or_default();
+                    e.0 += r.false_positives;
+                    e.1 += r.megapixels;
+                }
+                by.into_iter()
+                    .filter(|(_, (_, mp))| *mp > 0.0)
+                    .map(|(k, (n, mp))| (k, n as f64 / mp))
+                    .collect()
+            },
+            translation_mm: pick(|p| p.translation_mm),
+            translation_pct: pick(|p| p.translation_pct),
+            rotation_deg: pick(|p| p.rotation_deg),
+            flipped_rate: share(poses.iter().filter(|p| p.flipped).count(), poses.len()),
+            jitter_groups: jc.len(),
+            jitter_corner_px: median(&jc),
+            jitter_translation_mm: median(&jt),
+            jitter_rotation_deg: median(&jr),
+            time_ms: Stats::of(&times),
+            min_detectable_side_px: min_side,
+        });
+    }
+    WildSummary {
+        datasets,
+        systems: rows,
+        factors: curves,
+    }
+}
+
+/// Detection rate against every factor any counted marker was drawn with
+/// (the jitter group excepted: it names scenes, it is not a condition).
+fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
+    // factor -> (system, outcome)
+    let mut by_factor: BTreeMap<&str, Vec<(&str, &FactorValue, Status)>> = BTreeMap::new();
+    for r in runs.iter().filter(|r| !r.tag_free) {
+        for o in counted(r) {
+            for (f, v) in &o.factors {
+                if f != JITTER_GROUP {
+                    by_factor.entry(f.as_str()).or_default().push((
+                        r.detector.as_str(),
+                        v,
+                        o.status,
+                    ));
+                }
+            }
+        }
+    }
+    let mut curves = Vec::new();
+    for (factor, obs) in by_factor {
+        let numeric: Option<Vec<f64>> = obs
+            .iter()
+            .map(|(_, v, _)| match v {
+                FactorValue::Num(x) => Some(*x),
+                FactorValue::Text(_) => None,
+            })
+            .collect();
+        let (bins, labels): (Option<Bins>, Vec<String>) = match &numeric {
+            Some(values) => match Bins::of(values) {
+                Some(b) => {
+                    let labels = (0..b.len()).map(|k| b.label(k)).collect();
+                    (Some(b), labels)
+                }
+                None => continue,
+            },
+            None => {
+                let mut l: Vec<String> = obs.iter().map(|(_, v, _)| v.label()).collect();
+                l.sort();
+                l.dedup();
+                (None, l)
+            }
+        };
+        let mut points = Vec::new();
+        for sys in systems {
+            let mut cells = vec![(0usize, 0usize, 0usize); labels.len()];
+            for (_, v, status) in obs.iter().filter(|(s, _, _)| *s == sys.as_str()) {
+                let k = match (&bins, v) {
+                    (Some(b), FactorValue::Num(x)) => b.index(*x),
+                    _ => labels.iter().position(|l| *l == v.label()),
+                };
+                let Some(k) = k else { continue };
+                cells[k].0 += 1;
+                match status {
+                    Status::Correct => cells[k].1 += 1,
+                    Status::Rough => cells[k].2 += 1,
+                    Status::Missed => {}
+                }
+            }
+            if cells.iter().all(|c| c.0 == 0) {
+                continue;
+            }
+            for (k, (n, correct, rough)) in cells.into_iter().enumerate() {
+                points.push(CurvePoint {
+                    system: sys.clone(),
+                    bin: k,
+                    label: labels[k].clone(),
+                    centre: bins.as_ref().map(|b| b.centre(k)),
+                    markers: n,
+                    correct,
+                    rough,
+                });
+            }
+        }
+        curves.push(FactorCurve {
+            factor: factor.to_string(),
+            bins,
+            points,
+        });
+    }
+    curves
+}
+
+fn opt(v: Option<f64>, digits: usize) -> String {
+    v.map_or(String::new(), |x| format!("{x:.digits$}"))
+}
+
+impl WildSummary {
+    /// `wild-systems.csv`: one row per system.
+    pub fn systems_csv(&self) -> String {
+        let mut s = String::from(
+            "system,images,markers,correct,rough,missed,detection_rate,rough_rate,wrong_ids,false_positives_tagged,\
+             tag_free_images,tag_free_megapixels,tag_free_false_positives,false_positives_per_mp,\
+             pose_n,translation_median_mm,translation_p95_mm,translation_median_pct,translation_p95_pct,\
+             rotation_median_deg,rotation_p95_deg,flipped_rate,jitter_groups,jitter_corner_px,\
+             jitter_translation_mm,jitter_rotation_deg,time_median_ms,time_p95_ms,min_detectable_side_lo_px,\
+             min_detectable_side_hi_px,false_positives_per_mp_by_set\n",
+        );
+        for r in &self.systems {
+            s.push_str(&format!(
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{},\"{}\"\n",
+                r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
+                r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
+                r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
+                r.translation_mm.median, r.translation_mm.p95, r.translation_pct.median, r.translation_pct.p95,
+                r.rotation_deg.median, r.rotation_deg.p95, r.flipped_rate, r.jitter_groups,
+                opt(r.jitter_corner_px, 6), opt(r.jitter_translation_mm, 6), opt(r.jitter_rotation_deg, 6),
+                r.time_ms.median, r.time_ms.p95,
+                opt(r.min_detectable_side_px.map(|m| m.0), 3), opt(r.min_detectable_side_px.map(|m| m.1), 3),
+                r.false_positives_per_mp_by_set
+                    .iter()
+                    .map(|(k, v)| format!("{k}={v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(";")
+            ));
+        }
+        s
+    }
+
+    /// `wild-factors.csv`: one row per factor, bin and system.
+    pub fn factors_csv(&self) -> String {
+        let mut s =
+            String::from("factor,kind,bin,label,lo,hi,system,markers,correct,rough,found_rate\n");
+        for c in &self.factors {
+            for p in &c.points {
+                let (kind, lo, hi) = match &c.bins {
+                    Some(b) => {
+                        let (lo, hi) = b.range(p.bin);
+                        ("numeric", format!("{lo}"), format!("{hi}"))
+                    }
+                    None => ("categorical", String::new(), String::new()),
+                };
+                // Labels may hold commas ("[1, 2)"): quote them.
+                s.push_str(&format!(
+                    "{},{kind},{},\"{}\",{lo},{hi},{},{},{},{},{:.6}\n",
+                    c.factor,
+                    p.bin,
+                    p.label.replace('"', "\"\""),
+                    p.system,
+                    p.markers,
+                    p.correct,
+                    p.rough,
+                    p.rate()
+                ));
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::draws::Factors;
+    use crate::pose_error::PoseError;
+
+    fn outcome(index: usize, status: Status, factors: &[(&str, FactorValue)]) -> MarkerOutcome {
+        MarkerOutcome {
+            index,
+            marker_index: 0,
+            status,
+            corner_error_max_px: None,
+            corners: None,
+            pose: None,
+            factors: factors
+                .iter()
+                .map(|(k, v)| (k.to_string(), v.clone()))
+                .collect::<Factors>(),
+        }
+    }
+
+    fn run(detector: &str, outcomes: Vec<MarkerOutcome>) -> WildRun {
+        WildRun {
+            detector: detector.into(),
+            dataset: "d".into(),
+            images: outcomes.len(),
+            image_errors: 0,
+            megapixels: 1.0,
+            tag_free: false,
+            false_positives: 0,
+            wrong_ids: 0,
+            duplicates: 0,
+            times_ms: vec![1.0, 2.0, 3.0],
+            outcomes,
+        }
+    }
+
+    #[test]
+    fn jitter_is_the_spread_over_renders_and_a_group_counts_once() {
+        let group = [(JITTER_GROUP, FactorValue::Num(5.0))];
+        let sq = [[10.0, 10.0], [10.0, 50.0], [50.0, 50.0], [50.0, 10.0]];
+        let outcomes: Vec<MarkerOutcome> = [-1.0, 0.0, 1.0]
+            .iter()
+            .enumerate()
+            .map(|(i, &d)| {
+                let mut o = outcome(10 + i, Status::Correct, &group);
+                o.corners = Some(sq.map(|c| [c[0] + d, c[1]]));
+                o.pose = Some(PoseError {
+                    translation_mm: 1.0,
+                    translation_pct: 0.1,
+                    rotation_deg: 0.5,
+                    flipped: false,
+                    translation: [0.0, 0.0, 1.0 + d * 1e-3],
+                    rvec: [0.0, 0.0, d * 0.01],
+                });
+                o
+            })
+            .collect();
+        let s = summarise(&[run("coppertag", outcomes)]);
+        let r = &s.systems[0];
+        assert_eq!((r.markers, r.correct, r.jitter_groups), (1, 1, 1));
+        assert!((r.jitter_corner_px.unwrap() - 1.0).abs() < 1e-12);
+        assert!((r.jitter_translation_mm.unwrap() - 1.0).abs() < 1e-9);
+        assert!((r.jitter_rotation_deg.unwrap() - 0.01f64.to_degrees()).abs() < 1e-9);
+        assert_eq!(r.time_ms.median, 2.0);
+        // One found render is not enough for a spread.
+        let mut lone = outcome(20, Status::Correct, &group);
+        lone.corners = Some(sq);
+        let s = summarise(&[run("coppertag", vec![lone])]);
+        assert_eq!(s.systems[0].jitter_groups, 0);
+        assert!(s.systems[0].jitter_corner_px.is_none());
+    }
+
+    #[test]
+    fn curves_per_factor_and_the_minimum_size() {
+        // Side 20 px: 5 of 10 found; 30 px: 9 of 10 (one rough); 40 px: all.
+        let mut outcomes = Vec::new();
+        for (side, found) in [(20.0, 5), (30.0, 9), (40.0, 10)] {
+            for k in 0..10 {
+                let status = match k {
+                    0 if side == 30.0 => Status::Rough,
+                    k if k < found => Status::Correct,
+                    _ => Status::Missed,
+                };
+                let kind = FactorValue::Text(if k % 2 == 0 { "stick" } else { "tape" }.into());
+                outcomes.push(outcome(
+                    outcomes.len(),
+                    status,
+                    &[
+                        (SIDE_FACTOR, FactorValue::Num(side)),
+                        ("occluder_kind", kind),
+                    ],
+                ));
+            }
+        }
+        let s = summarise(&[
+            run("coppertag", outcomes.clone()),
+            run("apriltag3", outcomes[..10].to_vec()),
+        ]);
+        let sys: Vec<&str> = s.systems.iter().map(|r| r.system.as_str()).collect();
+        assert_eq!(sys, ["apriltag3", "coppertag"]);
+        let ours = &s.systems[1];
+        assert_eq!(
+            (ours.markers, ours.correct, ours.rough, ours.missed),
+            (30, 23, 1, 6)
+        );
+        assert_eq!(ours.min_detectable_side_px, Some((30.0, 30.0)));
+        assert_eq!(s.systems[0].min_detectable_side_px, None);
+        let side = s.factors.iter().find(|c| c.factor == SIDE_FACTOR).unwrap();
+        assert_eq!(side.bins, Some(Bins::Values(vec![20.0, 30.0, 40.0])));
+        let ours_30 = side
+            .points
+            .iter()
+            .find(|p| p.system == "coppertag" && p.bin == 1)
+            .unwrap();
+        assert_eq!(
+            (ours_30.markers, ours_30.correct, ours_30.rough),
+            (10, 8, 1)
+        );
+        let kind = s
+            .factors
+            .iter()
+            .find(|c| c.factor == "occluder_kind")
+            .unwrap();
+        assert!(kind.bins.is_none());
+        let labels: Vec<&str> = kind
+            .points
+            .iter()
+            .filter(|p| p.system == "coppertag")
+            .map(|p| p.label.as_str())
+            .collect();
+        assert_eq!(labels, ["stick", "tape"]);
+        assert!(s
+            .factors_csv()
+            .contains("occluder_kind,categorical,0,\"stick\",,,coppertag,15,"));
+    }
+}
