@@ -1035,7 +1035,7 @@ mod tests {
                 (a.min(x), b.max(x))
             });
         assert!(
-            lo >= 2.0 && lo < 2.02 && hi <= 6.0 && hi > 5.98,
+            (2.0..2.02).contains(&lo) && hi <= 6.0 && hi > 5.98,
             "{lo} {hi}"
         );
         // Uniform over the range when present: a quarter in each quarter.
