@@ -720,6 +720,111 @@ fn every_sample_key_rejects_bad_values_at_its_line() {
         "markers = [{ system = \"coppertag\", colour = \"red\" }]".into(),
         "colour",
     ));
+    // Events (a factor with a share): share in (0, 1], off within the
+    // factor's bounds, both given, no other key.
+    for (key, line, words) in [
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 0, off = 0 }",
+            "share must lie in (0, 1]",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 1.5, off = 0 }",
+            "share must lie in (0, 1]",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = \"half\", off = 0 }",
+            "are numbers",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 0.5, off = 30 }",
+            "off (the value when absent) must lie in",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 0.5, off = nan }",
+            "off (the value when absent) must lie in",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 0.5 }",
+            "needs both",
+        ),
+        ("defocus_px", "{ range = [0, 2], off = 0 }", "needs both"),
+        (
+            "defocus_px",
+            "{ range = [0, 2], share = 0.5, off = 0, when = 1 }",
+            "unknown key 'when'",
+        ),
+        (
+            "defocus_px",
+            "{ range = [0, 25], share = 0.5, off = 0 }",
+            "must lie in",
+        ),
+        (
+            "defocus_px",
+            "{ range = [2, 0], share = 0.5, off = 0 }",
+            "lo above hi",
+        ),
+        (
+            "defocus_px",
+            "{ range = 2, share = 0.5, off = 0 }",
+            "a range is",
+        ),
+        ("defocus_px", "{ values = [1], range = [0, 2] }", "not both"),
+        ("defocus_px", "{ share = 0.5, off = 0 }", "an event is"),
+        (
+            "jpeg_quality",
+            "{ range = [50, 100], share = 0.5, off = -1 }",
+            "off (the value when absent) must lie in 0..=100",
+        ),
+        (
+            "jpeg_quality",
+            "{ range = [0, 100], share = 0.5, off = 0 }",
+            "must lie in 1..=100",
+        ),
+        (
+            "glare_peak",
+            "{ values = [1, 5], share = 0.5, off = 0 }",
+            "must lie in",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [\"stick\"], share = 0 }",
+            "share must lie in (0, 1]",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [\"stick\"], share = 1.01 }",
+            "share must lie in (0, 1]",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [\"stick\"], share = \"half\" }",
+            "share is a number",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [\"stick\"], share = 0.5, off = \"none\" }",
+            "unknown key 'off'",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [\"velvet\"], share = 0.5 }",
+            "'velvet' is not one of",
+        ),
+        (
+            "occluder_kind",
+            "{ values = [], share = 0.5 }",
+            "non-empty list",
+        ),
+        ("occluder_kind", "{ share = 0.5 }", "non-empty list"),
+    ] {
+        cases.push((key.into(), format!("{key} = {line}"), words));
+    }
     for (key, line, words) in &cases {
         let text = with_line(key, line);
         let (msg, got_line, column) = error_of(tmp.path(), &text);
@@ -738,6 +843,34 @@ fn every_sample_key_rejects_bad_values_at_its_line() {
             "{line}: {msg}"
         );
     }
+    // Events that are fine load (jpeg's off = 0 is "no JPEG step").
+    let mut text = FULL_SAMPLE.to_string();
+    for (key, line) in [
+        (
+            "defocus_px",
+            "defocus_px = { range = [0, 2], share = 0.5, off = 0 }",
+        ),
+        (
+            "jpeg_quality",
+            "jpeg_quality = { range = [50, 100], share = 0.5, off = 0 }",
+        ),
+        (
+            "roll_deg",
+            "roll_deg = { values = [0, 90], share = 1, off = 45 }",
+        ),
+        (
+            "occluder_kind",
+            r#"occluder_kind = { values = ["stick", "glove-cutout"], share = 0.5 }"#,
+        ),
+    ] {
+        let old = FULL_SAMPLE
+            .lines()
+            .find(|l| l.starts_with(&format!("{key} =")))
+            .unwrap();
+        text = text.replace(old, line);
+    }
+    std::fs::write(&path, &text).unwrap();
+    assert_eq!(DatasetSpec::load(&path).unwrap().image_count(), 20);
     // An unknown key, in [sample] and in a marker type.
     let text = with_line("count", "count = 10\nsample_count = 3");
     let (msg, line, _) = error_of(tmp.path(), &text);

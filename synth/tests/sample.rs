@@ -655,3 +655,106 @@ fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
         }
     }
 }
+
+/// `sampled` with the event-like nuisances given a share of one half.
+fn with_events(system: &str, family: &str) -> String {
+    let mut t = sampled(system, family, "").replace("count = 8", "count = 24");
+    for (from, to) in [
+        (
+            "gradient = [0, 0.4]",
+            "gradient = { range = [0, 0.4], share = 0.5, off = 0 }",
+        ),
+        (
+            "shadow_darkness = [0, 0.6]",
+            "shadow_darkness = { range = [0, 0.6], share = 0.5, off = 0 }",
+        ),
+        (
+            "glare_peak = [0, 1.5]",
+            "glare_peak = { range = [0, 1.5], share = 0.5, off = 0 }",
+        ),
+        (
+            "defocus_px = [0, 2]",
+            "defocus_px = { range = [0, 2], share = 0.5, off = 0 }",
+        ),
+        (
+            "motion_blur_px = [0, 6]",
+            "motion_blur_px = { range = [0, 6], share = 0.5, off = 0 }",
+        ),
+        (
+            "jpeg_quality = [50, 100]",
+            "jpeg_quality = { range = [50, 100], share = 0.5, off = 0 }",
+        ),
+        (
+            r#"occluder_kind = ["none", "triangle", "stick", "cable", "flush-tape", "blob"]"#,
+            r#"occluder_kind = { values = ["triangle", "stick", "cable", "flush-tape", "blob"], share = 0.5 }"#,
+        ),
+    ] {
+        assert!(t.contains(from), "{from}");
+        t = t.replace(from, to);
+    }
+    t
+}
+
+#[test]
+fn events_with_a_share_give_the_same_bytes_on_1_and_2_threads_and_are_absent_in_about_half() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path();
+    let spec = DatasetSpec::load(&write(dir, "e.toml", &with_events("coppertag", "ct14"))).unwrap();
+    let (a, b) = (dir.join("a"), dir.join("b"));
+    run(1, &spec, &a, None);
+    run(2, &spec, &b, None);
+    let (ta, tb) = (read_tree(&a), read_tree(&b));
+    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
+    for (name, bytes) in &ta {
+        assert!(bytes == &tb[name], "{name} differs between 1 and 2 threads");
+    }
+    let (_, draws) = csv_rows(&a.join("draws.csv"));
+    let values = |factor: &str| -> Vec<String> {
+        draws
+            .iter()
+            .filter(|d| d[2] == factor)
+            .map(|d| d[3].clone())
+            .collect()
+    };
+    // Image-level events: recorded in every image, the off value (0) in
+    // about half (Halton strata: 12 of 24, give or take a few).
+    for factor in [
+        "gradient",
+        "shadow_darkness",
+        "glare_peak",
+        "defocus_px",
+        "motion_blur_px",
+        "jpeg_quality",
+    ] {
+        let v = values(factor);
+        assert_eq!(v.len(), 24, "{factor}");
+        let off = v.iter().filter(|x| x.as_str() == "0").count();
+        assert!((8..=16).contains(&off), "{factor}: {off} of 24 absent");
+    }
+    for q in values("jpeg_quality") {
+        let q: u32 = q.parse().unwrap();
+        assert!(q == 0 || (50..=100).contains(&q), "{q}");
+    }
+    // A glare lies on one of the frame's markers, not always the first.
+    let glared: Vec<usize> = values("glare_marker")
+        .iter()
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert_eq!(
+        glared.len(),
+        values("glare_peak")
+            .iter()
+            .filter(|x| x.as_str() != "0")
+            .count()
+    );
+    assert!(glared.iter().any(|k| *k > 0), "{glared:?}");
+    // Occluders on about half the markers.
+    let kinds = values("occluder_kind");
+    let none = kinds.iter().filter(|k| k.as_str() == "none").count();
+    let share = none as f64 / kinds.len() as f64;
+    assert!(
+        (0.3..=0.7).contains(&share),
+        "{none} of {} unoccluded",
+        kinds.len()
+    );
+}

@@ -37,8 +37,11 @@ use super::DatasetSpec;
 pub const IMAGE_DIMS: usize = 20;
 /// Halton coordinates of each marker slot.
 pub const MARKER_DIMS: usize = 12;
+/// Coordinates after the marker slots (added later: appending keeps every
+/// earlier coordinate, and so every earlier draw, as it was).
+const EXTRA_DIMS: usize = 1;
 /// All coordinates.
-pub const DIMS: usize = IMAGE_DIMS + MAX_MARKERS_PER_FRAME * MARKER_DIMS;
+pub const DIMS: usize = IMAGE_DIMS + MAX_MARKERS_PER_FRAME * MARKER_DIMS + EXTRA_DIMS;
 
 // Image-level coordinates.
 const D_MARKERS: usize = 0;
@@ -61,6 +64,8 @@ const D_READ_NOISE: usize = 16;
 const D_FULL_WELL: usize = 17;
 const D_JPEG: usize = 18;
 const D_K1: usize = 19;
+/// Which marker of the frame a glare lies on.
+const D_GLARE_MARKER: usize = IMAGE_DIMS + MAX_MARKERS_PER_FRAME * MARKER_DIMS;
 
 // Marker-slot coordinates (offsets within a slot).
 const M_SIZE: usize = 0;
@@ -101,7 +106,7 @@ const SHADOW_SOFTNESS_PX: (f64, f64) = (1.0, 15.0);
 /// Largest zoom of a background photograph beyond the smallest scale that
 /// fills the frame at any rotation.
 const PHOTO_ZOOM_MAX: f64 = 3.0;
-/// Glare size relative to the first marker's footprint radius.
+/// Glare size relative to the glared marker's footprint radius.
 const GLARE_SIGMA_REL: (f64, f64) = (0.1, 0.4);
 
 /// A sampled scene: its markers, settings and draws.
@@ -453,9 +458,10 @@ impl DatasetSpec {
             r.sensor.full_well_e = v;
         }
         if let Some(f) = &s.jpeg_quality {
-            let q = f.at_int(d.u(D_JPEG)).clamp(1, 100);
+            // 0 is the `off` value of a JPEG event: no JPEG step.
+            let q = f.at_int(d.u(D_JPEG)).clamp(0, 100);
             d.num(None, "jpeg_quality", q as f64);
-            r.effects.jpeg_quality = Some(q as u8);
+            r.effects.jpeg_quality = (q > 0).then_some(q as u8);
         }
 
         // Markers.
@@ -561,7 +567,12 @@ impl DatasetSpec {
             let occlusion = match &s.occluder_kind {
                 None => None,
                 Some(kinds) => {
-                    let kind = kinds[pick(u(M_OCC_KIND), kinds.len())];
+                    let uk = u(M_OCC_KIND);
+                    let kind = match s.occluder_share {
+                        None => kinds[pick(uk, kinds.len())],
+                        Some(share) => super::sample::present(uk, share)
+                            .map_or(OccluderKind::None, |v| kinds[pick(v, kinds.len())]),
+                    };
                     d.text(Some(mi), "occluder_kind", s.kind_name(kind));
                     match kind {
                         OccluderKind::None => {
@@ -649,8 +660,19 @@ impl DatasetSpec {
                 occlusion,
             });
         }
-        if let (Some(peak), Some((p, _))) = (glare, placed.first()) {
-            if peak > 0.0 {
+        // The glare lies on one marker of the frame, drawn from its own
+        // coordinate and recorded as `glare_marker`. Not always the first
+        // marker: that one is in every frame and is the one pulled towards
+        // the centre when it does not fit, so glare would go with those
+        // placements; drawn, every marker is equally likely to carry it and
+        // glared and unglared markers of the same frames can be compared.
+        // (Anywhere in the frame would miss the small markers nearly
+        // always and measure nothing.)
+        if let Some(peak) = glare.filter(|g| *g > 0.0) {
+            if !placed.is_empty() {
+                let k = pick(d.u(D_GLARE_MARKER), placed.len());
+                d.num(None, "glare_marker", k as f64);
+                let p = &placed[k].0;
                 let (gx, gy) = (d.u(D_GLARE_X) - 0.5, d.u(D_GLARE_Y) - 0.5);
                 let rel = rng.random_range(GLARE_SIGMA_REL.0..GLARE_SIGMA_REL.1);
                 r.lighting.glares.push(Glare {

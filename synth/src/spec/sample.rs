@@ -45,6 +45,27 @@ pub enum Factor {
     Range(f64, f64),
     /// One of the values, equally often.
     List(Vec<f64>),
+    /// An event: present in a `share` of the images (or markers), drawn
+    /// from `inner` then; absent otherwise, at the neutral value `off`.
+    Shared {
+        /// The draw when present.
+        inner: Box<Factor>,
+        /// Probability of being present, in (0, 1].
+        share: f64,
+        /// The value when absent (no blur, no glare, no JPEG step...).
+        off: f64,
+    },
+}
+
+/// Where a Halton coordinate `u` in [0, 1) falls for an event present in
+/// a `share` of the draws: `None` below `1 - share` (absent), otherwise
+/// `u` rescaled onto [0, 1). One coordinate serves both, so the present
+/// draws keep the sequence's low discrepancy and the whole stays
+/// deterministic.
+#[must_use]
+pub fn present(u: f64, share: f64) -> Option<f64> {
+    let absent = 1.0 - share;
+    (u >= absent).then(|| ((u - absent) / share).clamp(0.0, 1.0 - f64::EPSILON))
 }
 
 impl Factor {
@@ -54,6 +75,9 @@ impl Factor {
         match self {
             Factor::Range(lo, hi) => lo + u * (hi - lo),
             Factor::List(v) => v[pick(u, v.len())],
+            Factor::Shared { inner, share, off } => {
+                present(u, *share).map_or(*off, |v| inner.at(v))
+            }
         }
     }
 
@@ -67,6 +91,9 @@ impl Factor {
                 lo + pick(u, (hi - lo + 1) as usize) as i64
             }
             Factor::List(v) => v[pick(u, v.len())].round() as i64,
+            Factor::Shared { inner, share, off } => {
+                present(u, *share).map_or(off.round() as i64, |v| inner.at_int(v))
+            }
         }
     }
 
@@ -80,6 +107,10 @@ impl Factor {
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
                     (a.min(x), b.max(x))
                 }),
+            Factor::Shared { inner, off, .. } => {
+                let (lo, hi) = inner.bounds();
+                (lo.min(*off), hi.max(*off))
+            }
         }
     }
 }
@@ -238,7 +269,7 @@ pub struct Sample {
     pub gradient: Option<Factor>,
     /// Darkness of a shadow across the image (0 = none).
     pub shadow_darkness: Option<Factor>,
-    /// Peak of a specular glare on the first marker (0 = none).
+    /// Peak of a specular glare on one drawn marker of the frame (0 = none).
     pub glare_peak: Option<Factor>,
     /// Defocus blur sigma, pixels.
     pub defocus_px: Option<Factor>,
@@ -254,6 +285,10 @@ pub struct Sample {
     pub distortion_k1: Option<Factor>,
     /// Occluder kinds.
     pub occluder_kind: Option<Vec<OccluderKind>>,
+    /// Share of the markers that get an occluder (one of `occluder_kind`);
+    /// the others get none. `None`: every marker draws from the kinds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub occluder_share: Option<f64>,
     /// Pattern files whose patterns are occluder kinds (named by the
     /// pattern's name), as written; a directory is listed file by file.
     pub occluder_files: Vec<PathBuf>,
@@ -269,6 +304,9 @@ pub struct Sample {
     pub occluder_style: Option<Vec<OccluderStyle>>,
 }
 
+/// Keys of a factor written as a table.
+const TABLE_KEYS: [&str; 4] = ["values", "range", "share", "off"];
+
 /// Reads factor `key` of `[sample]`, checking it lies in `[min, max]`.
 struct Reader<'a, 'b> {
     loc: &'a KeyLocator<'b>,
@@ -282,6 +320,18 @@ impl Reader<'_, '_> {
         min: f64,
         max: f64,
     ) -> Result<Option<Factor>> {
+        self.factor_with_off(key, v, (min, max), (min, max))
+    }
+
+    /// A factor whose values lie in `allowed` and whose `off` value (when
+    /// it has a share) lies in `off_allowed`.
+    fn factor_with_off(
+        &self,
+        key: &str,
+        v: Option<&toml::Value>,
+        allowed: (f64, f64),
+        off_allowed: (f64, f64),
+    ) -> Result<Option<Factor>> {
         let Some(v) = v else { return Ok(None) };
         let err = |m: String| {
             self.loc
@@ -292,34 +342,85 @@ impl Reader<'_, '_> {
             toml::Value::Integer(i) => Some(*i as f64),
             _ => None,
         };
-        let f = match v {
-            toml::Value::Array(a) => {
-                let nums: Option<Vec<f64>> = a.iter().map(num).collect();
-                match nums.as_deref() {
-                    Some([lo, hi]) => {
-                        if lo > hi {
-                            return Err(err(format!("range [{lo}, {hi}] has lo above hi")));
-                        }
-                        Factor::Range(*lo, *hi)
+        let range = |a: &[toml::Value]| -> Result<Factor> {
+            let nums: Option<Vec<f64>> = a.iter().map(num).collect();
+            match nums.as_deref() {
+                Some([lo, hi]) => {
+                    if lo > hi {
+                        return Err(err(format!("range [{lo}, {hi}] has lo above hi")));
                     }
-                    _ => {
+                    Ok(Factor::Range(*lo, *hi))
+                }
+                _ => Err(err(
+                    "a range is [lo, hi] (two numbers); a list is { values = [...] }".into(),
+                )),
+            }
+        };
+        let (f, shared) = match v {
+            toml::Value::Array(a) => (range(a)?, None),
+            toml::Value::Table(t) => {
+                if let Some(bad) = t.keys().find(|k| !TABLE_KEYS.contains(&k.as_str())) {
+                    return Err(self.loc.err(
+                        steps!["sample", key, bad.as_str()],
+                        format!(
+                            "sample.{key}: unknown key '{bad}' (a list is {{ values = [...] }}; an event is {{ range = [lo, hi] or values = [...], share = p, off = x }})"
+                        ),
+                    ));
+                }
+                let f = match (t.get("values"), t.get("range")) {
+                    (Some(list), None) => {
+                        let nums: Option<Vec<f64>> = list
+                            .as_array()
+                            .and_then(|a| a.iter().map(num).collect());
+                        match nums {
+                            Some(n) if !n.is_empty() => Factor::List(n),
+                            _ => return Err(err("a list is { values = [numbers...] }".into())),
+                        }
+                    }
+                    (None, Some(toml::Value::Array(a))) => range(a)?,
+                    (None, Some(_)) => {
+                        return Err(err("a range is [lo, hi] (two numbers)".into()))
+                    }
+                    (Some(_), Some(_)) => {
+                        return Err(err("give one of values and range, not both".into()))
+                    }
+                    (None, None) => {
                         return Err(err(
-                            "a range is [lo, hi] (two numbers); a list is { values = [...] }"
+                            "a list is { values = [numbers...] }; an event is { range = [lo, hi], share = p, off = x }"
                                 .into(),
                         ))
                     }
-                }
-            }
-            toml::Value::Table(t) => {
-                let list = t.get("values").and_then(|x| x.as_array());
-                let nums: Option<Vec<f64>> = list.and_then(|a| a.iter().map(num).collect());
-                match nums {
-                    Some(n) if !n.is_empty() && t.len() == 1 => Factor::List(n),
-                    _ => return Err(err("a list is { values = [numbers...] }".into())),
-                }
+                };
+                let shared = match (t.get("share"), t.get("off")) {
+                    (None, None) => None,
+                    (Some(share), Some(off)) => {
+                        let (Some(share), Some(off)) = (num(share), num(off)) else {
+                            return Err(err("share and off are numbers".into()));
+                        };
+                        if !(share > 0.0 && share <= 1.0) {
+                            return Err(err(format!(
+                                "share must lie in (0, 1] (the probability the factor is present), got {share}"
+                            )));
+                        }
+                        let (lo, hi) = off_allowed;
+                        if !(off.is_finite() && off >= lo && off <= hi) {
+                            return Err(err(format!(
+                                "off (the value when absent) must lie in {lo}..={hi}, got {off}"
+                            )));
+                        }
+                        Some((share, off))
+                    }
+                    _ => {
+                        return Err(err(
+                            "an event needs both share = p and off = x (its value when absent)"
+                                .into(),
+                        ))
+                    }
+                };
+                (f, shared)
             }
             other => match num(other) {
-                Some(x) => Factor::List(vec![x]),
+                Some(x) => (Factor::List(vec![x]), None),
                 None => {
                     return Err(err(
                         "give a number, a range [lo, hi] or a list { values = [...] }".into(),
@@ -330,17 +431,29 @@ impl Reader<'_, '_> {
         let values = match &f {
             Factor::Range(lo, hi) => vec![*lo, *hi],
             Factor::List(v) => v.clone(),
+            Factor::Shared { inner, .. } => {
+                let (a, b) = inner.bounds();
+                vec![a, b]
+            }
         };
         if values.iter().any(|x| !x.is_finite()) {
             return Err(err("values must be finite numbers".into()));
         }
         let (lo, hi) = f.bounds();
+        let (min, max) = allowed;
         if !(lo >= min && hi <= max) {
             return Err(err(format!(
                 "values must lie in {min}..={max} (got {lo}..={hi})"
             )));
         }
-        Ok(Some(f))
+        Ok(Some(match shared {
+            None => f,
+            Some((share, off)) => Factor::Shared {
+                inner: Box::new(f),
+                share,
+                off,
+            },
+        }))
     }
 
     fn strings(&self, key: &str, v: Option<&toml::Value>) -> Result<Option<Vec<String>>> {
@@ -392,6 +505,51 @@ fn occluder_kind(name: &str) -> Option<OccluderKind> {
     }
     let s: Scenario = serde_json::from_value(serde_json::Value::String(name.into())).ok()?;
     (s != Scenario::Custom).then_some(OccluderKind::Generated(s))
+}
+
+/// Keys of `occluder_kind` written as a table.
+const KIND_TABLE_KEYS: [&str; 2] = ["values", "share"];
+
+/// `occluder_kind` as a plain name or list (returned as is, no share) or
+/// as `{ values = [...], share = p }`: a marker is occluded with
+/// probability `p`, by one of the values, and has no occluder otherwise.
+fn occluder_kind_table(
+    loc: &KeyLocator,
+    v: Option<&toml::Value>,
+) -> Result<(Option<toml::Value>, Option<f64>)> {
+    let Some(toml::Value::Table(t)) = v else {
+        return Ok((v.cloned(), None));
+    };
+    let err = |m: &str| {
+        loc.err(
+            steps!["sample", "occluder_kind"],
+            format!("sample.occluder_kind: {m}"),
+        )
+    };
+    if let Some(bad) = t.keys().find(|k| !KIND_TABLE_KEYS.contains(&k.as_str())) {
+        return Err(loc.err(
+            steps!["sample", "occluder_kind", bad.as_str()],
+            format!(
+                "sample.occluder_kind: unknown key '{bad}' (give a non-empty list of names, or {{ values = [names...], share = p }})"
+            ),
+        ));
+    }
+    let (Some(values), Some(share)) = (t.get("values"), t.get("share")) else {
+        return Err(err(
+            "give a non-empty list of names, or { values = [names...], share = p }",
+        ));
+    };
+    let share = match share {
+        toml::Value::Float(f) => *f,
+        toml::Value::Integer(i) => *i as f64,
+        _ => return Err(err("share is a number")),
+    };
+    if !(share > 0.0 && share <= 1.0) {
+        return Err(err(&format!(
+            "share must lie in (0, 1] (the probability a marker is occluded), got {share}"
+        )));
+    }
+    Ok((Some(values.clone()), Some(share)))
 }
 
 /// The built-in occluder kinds, for messages.
@@ -694,9 +852,10 @@ pub(super) fn sample(
         allowed.push_str(", ");
         allowed.push_str(&p.name);
     }
+    let (kind_names, occluder_share) = occluder_kind_table(loc, sf.occluder_kind.as_ref())?;
     let occluder_kind = r.choices(
         "occluder_kind",
-        sf.occluder_kind.as_ref(),
+        kind_names.as_ref(),
         |n| {
             occluder_kind(n).or_else(|| {
                 occluder_patterns
@@ -787,9 +946,16 @@ pub(super) fn sample(
         )?,
         read_noise_dn: r.factor("read_noise_dn", sf.read_noise_dn.as_ref(), 0.0, 100.0)?,
         full_well_e: r.factor("full_well_e", sf.full_well_e.as_ref(), 0.0, 1e7)?,
-        jpeg_quality: r.factor("jpeg_quality", sf.jpeg_quality.as_ref(), 1.0, 100.0)?,
+        // `off = 0` is "no JPEG step" (the image stays lossless).
+        jpeg_quality: r.factor_with_off(
+            "jpeg_quality",
+            sf.jpeg_quality.as_ref(),
+            (1.0, 100.0),
+            (0.0, 100.0),
+        )?,
         distortion_k1: r.factor("distortion_k1", sf.distortion_k1.as_ref(), -0.5, 0.5)?,
         occluder_kind,
+        occluder_share,
         occluder_files,
         occluder_patterns,
         occluder_coverage,
@@ -845,4 +1011,48 @@ pub struct Draw {
     pub factor: &'static str,
     /// Value.
     pub value: DrawValue,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn an_event_is_absent_below_one_minus_its_share_and_spans_its_range_above() {
+        let f = Factor::Shared {
+            inner: Box::new(Factor::Range(2.0, 6.0)),
+            share: 0.25,
+            off: 0.0,
+        };
+        let n = 1000;
+        let vals: Vec<f64> = (0..n).map(|k| f.at((k as f64 + 0.5) / n as f64)).collect();
+        let absent = vals.iter().filter(|v| **v == 0.0).count();
+        assert_eq!(absent, 750);
+        let drawn: Vec<f64> = vals.iter().copied().filter(|v| *v != 0.0).collect();
+        let (lo, hi) = drawn
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+                (a.min(x), b.max(x))
+            });
+        assert!(
+            (2.0..2.02).contains(&lo) && hi <= 6.0 && hi > 5.98,
+            "{lo} {hi}"
+        );
+        // Uniform over the range when present: a quarter in each quarter.
+        let first = drawn.iter().filter(|v| **v < 3.0).count();
+        assert_eq!(first, drawn.len() / 4);
+        assert_eq!(f.bounds(), (0.0, 6.0));
+        // Whole numbers: the off value, or each of 50..=100 when present.
+        let q = Factor::Shared {
+            inner: Box::new(Factor::Range(50.0, 100.0)),
+            share: 0.5,
+            off: 0.0,
+        };
+        assert_eq!(q.at_int(0.49), 0);
+        assert_eq!(q.at_int(0.5), 50);
+        assert_eq!(q.at_int(0.999_999), 100);
+        // A share of 1 is always present.
+        assert_eq!(present(0.0, 1.0), Some(0.0));
+        assert_eq!(present(0.3, 0.5), None);
+    }
 }
