@@ -183,6 +183,28 @@ pub fn baseline_of(
     }
 }
 
+/// The exact checks shared by the sweep and wild entries: the detection
+/// rate may not fall (beyond float rounding) and no count may grow.
+fn exact_checks<const N: usize>(
+    fails: &mut Vec<String>,
+    k: &str,
+    (rate_was, rate_is): (f64, f64),
+    counts: [(&str, usize, usize); N],
+) {
+    if rate_is < rate_was - 1e-9 {
+        fails.push(format!(
+            "{k}: detection rate fell {:.2}% -> {:.2}%",
+            100.0 * rate_was,
+            100.0 * rate_is
+        ));
+    }
+    for (what, was, is) in counts {
+        if is > was {
+            fails.push(format!("{k}: {what} grew {was} -> {is}"));
+        }
+    }
+}
+
 /// Compares summaries with a baseline; returns the failures, one readable
 /// line each (empty = pass).
 pub fn check(baseline: &Baseline, summaries: &[Summary], tol: Tolerances) -> Vec<String> {
@@ -193,22 +215,16 @@ pub fn check(baseline: &Baseline, summaries: &[Summary], tol: Tolerances) -> Vec
             fails.push(format!("{k}: missing from this run"));
             continue;
         };
-        if s.detection_rate < b.detection_rate - 1e-9 {
-            fails.push(format!(
-                "{k}: detection rate fell {:.2}% -> {:.2}%",
-                100.0 * b.detection_rate,
-                100.0 * s.detection_rate
-            ));
-        }
-        for (what, was, is) in [
-            ("wrong ids", b.wrong_ids, s.wrong_ids),
-            ("false positives", b.false_positives, s.false_positives),
-            ("duplicates", b.duplicates, s.duplicates),
-        ] {
-            if is > was {
-                fails.push(format!("{k}: {what} grew {was} -> {is}"));
-            }
-        }
+        exact_checks(
+            &mut fails,
+            k,
+            (b.detection_rate, s.detection_rate),
+            [
+                ("wrong ids", b.wrong_ids, s.wrong_ids),
+                ("false positives", b.false_positives, s.false_positives),
+                ("duplicates", b.duplicates, s.duplicates),
+            ],
+        );
         for (what, was, is) in [
             (
                 "median corner error",
@@ -251,26 +267,20 @@ pub fn check_wild(baseline: &Baseline, wild: &WildSummary) -> Vec<String> {
             ));
             continue;
         }
-        if n.detection_rate < b.detection_rate - 1e-9 {
-            fails.push(format!(
-                "{k}: detection rate fell {:.2}% -> {:.2}%",
-                100.0 * b.detection_rate,
-                100.0 * n.detection_rate
-            ));
-        }
-        for (what, was, is) in [
-            ("rough detections", b.rough, n.rough),
-            ("wrong ids", b.wrong_ids, n.wrong_ids),
-            (
-                "false positives on tagged frames",
-                b.false_positives_tagged,
-                n.false_positives_tagged,
-            ),
-        ] {
-            if is > was {
-                fails.push(format!("{k}: {what} grew {was} -> {is}"));
-            }
-        }
+        exact_checks(
+            &mut fails,
+            k,
+            (b.detection_rate, n.detection_rate),
+            [
+                ("rough detections", b.rough, n.rough),
+                ("wrong ids", b.wrong_ids, n.wrong_ids),
+                (
+                    "false positives on tagged frames",
+                    b.false_positives_tagged,
+                    n.false_positives_tagged,
+                ),
+            ],
+        );
         match (b.false_positives_per_mp, n.false_positives_per_mp) {
             (Some(was), Some(is)) if is > was + 1e-9 => fails.push(format!(
                 "{k}: false positives per megapixel grew {was:.4} -> {is:.4}"
