@@ -70,6 +70,14 @@ pub struct ReproduceArgs {
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 
+    /// Detector sessions run at once on each dataset, each on its own
+    /// shard of the images, put back together exactly as one run (see
+    /// `coppertag run --shard`). Every session is single-threaded, so up to
+    /// the number of cores each frame is still timed on a core of its own;
+    /// 1 runs the images one after another. Default: the number of cores.
+    #[arg(long, short = 'j', value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub jobs: Option<u16>,
+
     /// No progress bars.
     #[arg(long, short)]
     pub quiet: bool,
@@ -179,6 +187,10 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
         anyhow::bail!("no dataset specs found in {:?}", args.specs);
     }
     let every = if args.quick { 10 } else { 1 };
+    let workers = args.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        usize::from,
+    );
     let mut failures = Vec::new();
     let mut runs = Vec::new();
     let mut wild_runs = Vec::new();
@@ -259,7 +271,9 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
                         &format!("{label} detect {marker}"),
                         args.quiet,
                     );
-                    let out = runner::run(&detector, &ds, |d, _| pb.set_position(d as u64));
+                    let out = runner::run_parallel(&detector, &ds, workers, |d, _| {
+                        pb.set_position(d as u64)
+                    });
                     pb.finish_and_clear();
                     let out = out?;
                     let path = args.work.join("runs").join(format!("{run_name}.mcap"));
