@@ -90,6 +90,17 @@ pub struct RunInfo {
     /// ([`crate::shard`]); empty for a whole run.
     #[serde(default)]
     pub shard: String,
+    /// Detector sessions that ran at the same time, each on a shard of the
+    /// images ([`run_parallel`]); 1 for a run made one image after another.
+    /// Per-image times of a run with more than one are not comparable with
+    /// the others (the sessions share the machine's cores, caches and
+    /// memory bandwidth), so the report does not quote them.
+    #[serde(default = "one_session")]
+    pub sessions: usize,
+}
+
+fn one_session() -> usize {
+    1
 }
 
 /// Resource use of a run.
@@ -470,6 +481,7 @@ pub fn run_parallel(
     let mut parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
     let mut whole = parts.remove(0);
     whole.info.shard = String::new();
+    whole.info.sessions = workers;
     for p in &parts {
         whole.resources.add(&p.resources);
         whole.info.started_unix_s = whole.info.started_unix_s.min(p.info.started_unix_s);
@@ -534,6 +546,7 @@ pub fn run(
             machine: resources::machine(),
             started_unix_s,
             shard: String::new(),
+            sessions: 1,
         },
         results,
         resources,

@@ -211,6 +211,7 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     }
     let mut info = parts[order[0]].info.clone();
     info.shard = String::new();
+    info.sessions = parts.iter().map(|p| p.info.sessions).max().unwrap_or(1);
     Ok(RunLog {
         info,
         resources,

@@ -75,8 +75,57 @@ fn parallel_sessions_give_the_sequential_results() {
         assert_eq!(*last.lock().unwrap(), (13, 13));
         assert_eq!((par.resources.images, par.resources.errors), (13, 0));
         assert!(par.info.shard.is_empty());
+        assert_eq!(par.info.sessions, workers.min(13));
         assert!(par.results.iter().any(|r| !r.result.detections.is_empty()));
     }
+}
+
+/// The report quotes no time for a run whose sessions ran side by side
+/// (their per-image times are not comparable), and quotes it otherwise;
+/// the sessions survive the run log.
+#[test]
+fn runs_of_parallel_sessions_show_no_time() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ds = Dataset::open(dataset()).unwrap();
+    let spec =
+        DetectorSpec::by_name("coppertag", Path::new("unused"), Path::new("unused")).unwrap();
+    let mut summaries = Vec::new();
+    for workers in [1, 2] {
+        let out = runner::run_parallel(&spec, &ds, workers, |_, _| {}).unwrap();
+        let path = tmp.path().join(format!("run{workers}.mcap"));
+        runlog::save(&path, &out).unwrap();
+        let log = RunLog::read(&path).unwrap();
+        assert_eq!(log.info.sessions, workers);
+        let s = evaluate(&log, &ds, MatchRule::default());
+        assert_eq!(s.sessions, workers);
+        summaries.push(s);
+    }
+    let machine = coppertag_eval::report::Machine {
+        cores: 2,
+        memory: 1 << 30,
+    };
+    let md = coppertag_eval::report::write_report(
+        &summaries,
+        &tmp.path().join("reports"),
+        machine,
+        "",
+        None,
+    )
+    .unwrap();
+    let rows: Vec<&str> = md
+        .lines()
+        .filter(|l| l.starts_with("| coppertag-rotated-z | coppertag |"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{md}");
+    let time = |row: &str| {
+        row.trim_end_matches(" |")
+            .rsplit("| ")
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    assert!(time(rows[0]).parse::<f64>().unwrap() > 0.0, "{}", rows[0]);
+    assert_eq!(time(rows[1]), "-", "{}", rows[1]);
 }
 
 #[test]

@@ -70,11 +70,19 @@ pub struct ReproduceArgs {
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 
-    /// Detector sessions run at once on each dataset, each on its own
-    /// shard of the images, put back together exactly as one run (see
-    /// `coppertag run --shard`). Every session is single-threaded, so up to
-    /// the number of cores each frame is still timed on a core of its own;
-    /// 1 runs the images one after another. Default: the number of cores.
+    /// Spec directories (among --specs) whose runs are scored for
+    /// detection only: the robustness curves quote no time. Their
+    /// detectors run --jobs sessions at once, each on its own shard of the
+    /// images, put back together exactly as one run (see `coppertag run
+    /// --shard`); the report shows no times for them. Every other run is
+    /// timed one image after another, since sessions running side by side
+    /// slow each other down (on this 2-core machine, our detector's median
+    /// doubled).
+    #[arg(long, num_args = 0.., default_values = ["datasets/robustness"])]
+    pub untimed: Vec<PathBuf>,
+
+    /// Detector sessions at once on the --untimed sets. Default: the number
+    /// of cores.
     #[arg(long, short = 'j', value_parser = clap::value_parser!(u16).range(1..=256))]
     pub jobs: Option<u16>,
 
@@ -148,19 +156,26 @@ struct Job {
     spec: PathBuf,
     detectors: Vec<String>,
     wild: bool,
+    /// Scored for detection only: detected with several sessions at once.
+    untimed: bool,
 }
 
 fn jobs(args: &ReproduceArgs) -> Result<Vec<Job>> {
     let wanted = |m: &str| args.only.is_empty() || args.only.iter().any(|o| o == m);
-    let mut out: Vec<Job> = spec_files(&args.specs)?
-        .into_iter()
-        .filter(|s| wanted(&marker_of(s)))
-        .map(|spec| Job {
-            detectors: vec![marker_of(&spec)],
-            spec,
-            wild: false,
-        })
-        .collect();
+    let mut out = Vec::new();
+    for dir in &args.specs {
+        let untimed = args.untimed.contains(dir);
+        for spec in spec_files(std::slice::from_ref(dir))? {
+            if wanted(&marker_of(&spec)) {
+                out.push(Job {
+                    detectors: vec![marker_of(&spec)],
+                    spec,
+                    wild: false,
+                    untimed,
+                });
+            }
+        }
+    }
     for spec in spec_files(std::slice::from_ref(&args.wild))? {
         let marker = marker_of(&spec);
         let detectors: Vec<String> = if runner::KNOWN.contains(&marker.as_str()) {
@@ -174,6 +189,7 @@ fn jobs(args: &ReproduceArgs) -> Result<Vec<Job>> {
                 spec,
                 detectors,
                 wild: true,
+                untimed: false,
             });
         }
     }
@@ -271,7 +287,8 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
                         &format!("{label} detect {marker}"),
                         args.quiet,
                     );
-                    let out = runner::run_parallel(&detector, &ds, workers, |d, _| {
+                    let sessions = if job.untimed { workers } else { 1 };
+                    let out = runner::run_parallel(&detector, &ds, sessions, |d, _| {
                         pb.set_position(d as u64)
                     });
                     pb.finish_and_clear();
