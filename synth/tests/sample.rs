@@ -325,7 +325,8 @@ fn write_photo(dir: &Path, name: &str, k: u32) {
     img.save(dir.join(name)).unwrap();
 }
 
-const PHOTO_SPEC: &str = r#"
+const PHOTO_SPEC: &str = concat!(
+    r#"
 seed = 5
 [camera]
 width = 200
@@ -338,15 +339,9 @@ markers = []
 markers_per_frame = 0
 background = ["image"]
 background_dir = "photos"
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-"#;
+"#,
+    camera_factors!()
+);
 
 #[test]
 fn photo_frames_depend_on_the_photographs_not_their_directory() {
