@@ -118,7 +118,7 @@ DEFS = {
 spec = json.load(open(sys.argv[1]))
 cam = spec["camera"]
 with open(spec["out"], "wb") as f:
-    w = Writer(f)
+    w = Writer(f, chunk_size=spec.get("chunk_size", 1024 * 1024))
     schemas = {}
     def schema(name):
         if name not in schemas:
@@ -207,6 +207,17 @@ fn fixture() -> &'static Fixture {
 /// Writes a bag of the fixture's frames with the given topics
 /// (`{"name", "kind", ...}`) into `dir/name`.
 fn write_bag(py: &Path, dir: &Path, name: &str, topics: serde_json::Value) -> PathBuf {
+    write_bag_chunked(py, dir, name, topics, 1 << 20)
+}
+
+/// [`write_bag`] with MCAP chunks of `chunk_size` bytes (1: one message each).
+fn write_bag_chunked(
+    py: &Path,
+    dir: &Path,
+    name: &str,
+    topics: serde_json::Value,
+    chunk_size: usize,
+) -> PathBuf {
     let f = fixture();
     let out = dir.join(name);
     let frames: Vec<serde_json::Value> = f
@@ -219,7 +230,7 @@ fn write_bag(py: &Path, dir: &Path, name: &str, topics: serde_json::Value) -> Pa
         })
         .collect();
     let desc = serde_json::json!({
-        "out": out, "frames": frames, "topics": topics, "camera": f.camera,
+        "out": out, "frames": frames, "topics": topics, "camera": f.camera, "chunk_size": chunk_size,
     });
     let desc_path = dir.join(format!("{name}.json"));
     std::fs::write(&desc_path, desc.to_string()).unwrap();
@@ -306,7 +317,10 @@ fn check_against_truth(out: &Path, frame_id: &str, times: impl Fn(usize) -> (u64
         assert_eq!(*log_time, log);
         assert_eq!(m["index"], i);
         assert_eq!(m["frame_id"], frame_id);
-        assert_eq!(m["stamp"], serde_json::json!({"sec": s / 1_000_000_000, "nsec": s % 1_000_000_000}));
+        assert_eq!(
+            m["stamp"],
+            serde_json::json!({"sec": s / 1_000_000_000, "nsec": s % 1_000_000_000})
+        );
         let truth = &f.truth.truth[&f.truth.images[i].1];
         let found = m["detections"].as_array().unwrap();
         assert_eq!(found.len(), truth.len(), "frame {i}: {m}");
@@ -319,18 +333,39 @@ fn check_against_truth(out: &Path, frame_id: &str, times: impl Fn(usize) -> (u64
             let tc = [[t.x0, t.y0], [t.x1, t.y1], [t.x2, t.y2], [t.x3, t.y3]];
             for (a, b) in c.iter().zip(tc) {
                 let e = (a[0] - b[0]).hypot(a[1] - b[1]);
-                assert!(e < 0.5, "frame {i} {} {}: corner off by {e:.3} px", t.family, t.id);
+                assert!(
+                    e < 0.5,
+                    "frame {i} {} {}: corner off by {e:.3} px",
+                    t.family,
+                    t.id
+                );
             }
             let (rvec, t_true, side) = t.pose().unwrap();
             assert!((side - SQUARE_M).abs() < 1e-12);
             let p = &d["pose"]["best"];
             let est: [f64; 3] = std::array::from_fn(|k| p["translation"][k].as_f64().unwrap());
             let dist = t_true.iter().map(|v| v * v).sum::<f64>().sqrt();
-            let err = est.iter().zip(t_true).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
-            assert!(err < 0.01 * dist, "frame {i} {} {}: position off by {:.2}%", t.family, t.id, 100.0 * err / dist);
+            let err = est
+                .iter()
+                .zip(t_true)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            assert!(
+                err < 0.01 * dist,
+                "frame {i} {} {}: position off by {:.2}%",
+                t.family,
+                t.id,
+                100.0 * err / dist
+            );
             let r = nalgebra::Matrix3::from_fn(|a, b| p["rotation"][a][b].as_f64().unwrap());
             let deg = angle_between(&r, &rotation_of(rvec)).to_degrees();
-            assert!(deg < 1.0, "frame {i} {} {}: rotation off by {deg:.2} deg", t.family, t.id);
+            assert!(
+                deg < 1.0,
+                "frame {i} {} {}: rotation off by {deg:.2} deg",
+                t.family,
+                t.id
+            );
         }
     }
     // One annotation and one transform message per frame, on the same times.
@@ -354,7 +389,11 @@ fn every_encoding_finds_the_truth() {
     ] {
         let out = dir.path().join(format!("{}.mcap", topic.replace('/', "_")));
         let o = detect(bag, &out, &["--topic", topic, "--tag-size", "0.05"]);
-        assert!(o.status.success(), "{topic}: {}", String::from_utf8_lossy(&o.stderr));
+        assert!(
+            o.status.success(),
+            "{topic}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
         check_against_truth(&out, frame_id, |i| (stamp(i), stamp(i) + LOG_DELAY_NS));
     }
 }
@@ -366,7 +405,18 @@ fn output_does_not_depend_on_threads() {
     let dir = tempfile::tempdir().unwrap();
     let (a, b) = (dir.path().join("1.mcap"), dir.path().join("2.mcap"));
     for (out, n) in [(&a, "1"), (&b, "3")] {
-        let o = detect(bag, out, &["--topic", "/color/image_raw", "--tag-size", "0.05", "--threads", n]);
+        let o = detect(
+            bag,
+            out,
+            &[
+                "--topic",
+                "/color/image_raw",
+                "--tag-size",
+                "0.05",
+                "--threads",
+                n,
+            ],
+        );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
@@ -378,7 +428,11 @@ fn output_reads_back_in_python_mcap() {
     let bag = good_bag(&py);
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("out.mcap");
-    let o = detect(bag, &out, &["--topic", "/mono/image_raw", "--tag-size", "0.05"]);
+    let o = detect(
+        bag,
+        &out,
+        &["--topic", "/mono/image_raw", "--tag-size", "0.05"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let script = r#"
 import json, sys
@@ -400,7 +454,12 @@ with open(sys.argv[1], "rb") as f:
         out["messages"].append(entry)
 print(json.dumps(out))
 "#;
-    let o = Command::new(&py).arg("-c").arg(script).arg(&out).output().unwrap();
+    let o = Command::new(&py)
+        .arg("-c")
+        .arg(script)
+        .arg(&out)
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(
@@ -417,10 +476,15 @@ print(json.dumps(out))
     for m in msgs {
         let t = m["log_time"].as_u64().unwrap();
         assert_eq!(m["publish_time"], t);
-        let i = (0..n).find(|&i| stamp(i) + LOG_DELAY_NS == t).expect("a source log time");
+        let i = (0..n)
+            .find(|&i| stamp(i) + LOG_DELAY_NS == t)
+            .expect("a source log time");
         match m["topic"].as_str().unwrap() {
             "/coppertag/tf" => {
-                assert_eq!(m["children"], serde_json::json!(["tag_ct14_42", "tag_ct8_1234"]));
+                assert_eq!(
+                    m["children"],
+                    serde_json::json!(["tag_ct14_42", "tag_ct8_1234"])
+                );
                 assert_eq!(m["parents"], serde_json::json!(["cam_optical"]));
                 assert_eq!(m["stamps"], serde_json::json!([stamp(i)]));
             }
@@ -444,7 +508,11 @@ fn refused(bag: &Path, extra: &[&str], want: &[&str]) {
     for w in want {
         assert!(err.contains(w), "'{w}' not in: {err}");
     }
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "output left behind");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "output left behind"
+    );
 }
 
 #[test]
@@ -455,9 +523,18 @@ fn bad_recordings_are_refused_by_name() {
     refused(
         good_bag(&py),
         &[],
-        &["4 image topics", "--topic", "/mono/image_raw", "/gray/image_raw/compressed"],
+        &[
+            "4 image topics",
+            "--topic",
+            "/mono/image_raw",
+            "/gray/image_raw/compressed",
+        ],
     );
-    refused(good_bag(&py), &["--topic", "/chatter"], &["/chatter", "std_msgs/msg/String"]);
+    refused(
+        good_bag(&py),
+        &["--topic", "/chatter"],
+        &["/chatter", "std_msgs/msg/String"],
+    );
     // No image topic at all.
     let bag = write_bag(
         &py,
@@ -465,7 +542,14 @@ fn bad_recordings_are_refused_by_name() {
         "no-image.mcap",
         serde_json::json!([{"name": "/cam/camera_info", "kind": "camera_info"}]),
     );
-    refused(&bag, &[], &["no image topic", "/cam/camera_info (sensor_msgs/msg/CameraInfo"]);
+    refused(
+        &bag,
+        &[],
+        &[
+            "no image topic",
+            "/cam/camera_info (sensor_msgs/msg/CameraInfo",
+        ],
+    );
     // An encoding the detector cannot read.
     let bag = write_bag(
         &py,
@@ -473,7 +557,11 @@ fn bad_recordings_are_refused_by_name() {
         "float.mcap",
         serde_json::json!([{"name": "/depth/image", "kind": "32FC1"}]),
     );
-    refused(&bag, &[], &["/depth/image message 0", "unsupported encoding '32FC1'"]);
+    refused(
+        &bag,
+        &[],
+        &["/depth/image message 0", "unsupported encoding '32FC1'"],
+    );
     // A calibration with a zero focal length.
     let bag = write_bag(
         &py,
@@ -484,7 +572,11 @@ fn bad_recordings_are_refused_by_name() {
             {"name": "/cam/camera_info", "kind": "camera_info", "fx": 0.0},
         ]),
     );
-    refused(&bag, &["--tag-size", "0.05"], &["/cam/camera_info message at", "fx (K[0]) = 0"]);
+    refused(
+        &bag,
+        &["--tag-size", "0.05"],
+        &["/cam/camera_info message at", "fx (K[0]) = 0"],
+    );
     // Poses without any calibration.
     let bag = write_bag(
         &py,
@@ -492,31 +584,66 @@ fn bad_recordings_are_refused_by_name() {
         "no-info.mcap",
         serde_json::json!([{"name": "/cam/image_raw", "kind": "mono8"}]),
     );
-    refused(&bag, &["--tag-size", "0.05"], &["--tag-size needs a camera model", "/cam/camera_info"]);
+    refused(
+        &bag,
+        &["--tag-size", "0.05"],
+        &["--tag-size needs a camera model", "/cam/camera_info"],
+    );
 }
 
 #[test]
 fn truncated_bag_is_refused_or_read_up_to_the_damage() {
     let Some(py) = python() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let full = good_bag(&py);
+    // One chunk per frame, cut after the first: a recorder killed mid-write.
+    let full = write_bag_chunked(
+        &py,
+        dir.path(),
+        "chunked.mcap",
+        serde_json::json!([
+            {"name": "/mono/image_raw", "kind": "mono8"},
+            {"name": "/mono/camera_info", "kind": "camera_info"},
+        ]),
+        1,
+    );
+    let full = full.as_path();
     let bytes = std::fs::read(full).unwrap();
-    // Cut inside the last frame's chunks: the first frames stay whole.
     let cut = dir.path().join("cut.mcap");
-    std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
-    refused(&cut, &["--topic", "/mono/image_raw"], &["truncated or damaged", "--allow-truncated"]);
+    std::fs::write(&cut, &bytes[..bytes.len() * 3 / 5]).unwrap();
+    refused(
+        &cut,
+        &["--topic", "/mono/image_raw"],
+        &["truncated or damaged", "--allow-truncated"],
+    );
     let out = dir.path().join("out.mcap");
-    let o = detect(&cut, &out, &["--topic", "/mono/image_raw", "--tag-size", "0.05", "--allow-truncated"]);
+    let o = detect(
+        &cut,
+        &out,
+        &[
+            "--topic",
+            "/mono/image_raw",
+            "--tag-size",
+            "0.05",
+            "--allow-truncated",
+        ],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let kept = messages(&out)["/coppertag/detections"].len();
     let all = fixture().truth.images.len();
     assert!(kept > 0 && kept < all, "kept {kept} of {all} frames");
     // The frames kept are the first ones, found as in the whole bag.
     let whole = dir.path().join("whole.mcap");
-    let o = detect(full, &whole, &["--topic", "/mono/image_raw", "--tag-size", "0.05"]);
+    let o = detect(
+        full,
+        &whole,
+        &["--topic", "/mono/image_raw", "--tag-size", "0.05"],
+    );
     assert!(o.status.success());
     let (a, b) = (messages(&out), messages(&whole));
-    assert_eq!(a["/coppertag/detections"][..], b["/coppertag/detections"][..kept]);
+    assert_eq!(
+        a["/coppertag/detections"][..],
+        b["/coppertag/detections"][..kept]
+    );
 }
 
 /// The dataset's own times: image `i` at 1 s + i * 100 ms.
@@ -537,7 +664,11 @@ fn synth_datasets_read_as_recordings() {
     check_against_truth(&out, "camera", dataset_time);
     // The rosbag2 file of `synth --format ros2`.
     let out = dir.path().join("ros2.mcap");
-    let o = detect(&f.ds.join("dataset.ros2.mcap"), &out, &["--tag-size", "0.05"]);
+    let o = detect(
+        &f.ds.join("dataset.ros2.mcap"),
+        &out,
+        &["--tag-size", "0.05"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     check_against_truth(&out, "camera", dataset_time);
 }
@@ -585,7 +716,10 @@ print(json.dumps(out))
         assert_eq!(frame[0]["type"], "sensor_msgs/msg/Image");
         assert_eq!(frame[0]["topic"], "/camera/image_raw");
         assert_eq!(frame[0]["encoding"], "mono8");
-        assert_eq!((frame[0]["width"].clone(), frame[0]["height"].clone()), (640.into(), 480.into()));
+        assert_eq!(
+            (frame[0]["width"].clone(), frame[0]["height"].clone()),
+            (640.into(), 480.into())
+        );
         assert_eq!(frame[0]["bytes"], 640 * 480);
         assert_eq!(frame[0]["stamp"], t);
         assert_eq!(frame[1]["type"], "sensor_msgs/msg/CameraInfo");
@@ -593,7 +727,9 @@ print(json.dumps(out))
         assert_eq!(frame[1]["d"], cam["distortion"]);
         assert_eq!(
             frame[1]["k"],
-            serde_json::json!([cam["fx"], 0.0, cam["cx"], 0.0, cam["fy"], cam["cy"], 0.0, 0.0, 1.0])
+            serde_json::json!([
+                cam["fx"], 0.0, cam["cx"], 0.0, cam["fy"], cam["cy"], 0.0, 0.0, 1.0
+            ])
         );
         assert_eq!(frame[2]["type"], "std_msgs/msg/String");
         assert_eq!(frame[2]["ids"], serde_json::json!([42, 1234]));

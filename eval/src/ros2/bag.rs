@@ -238,7 +238,9 @@ impl Scan {
             .filter(|t| t.name.rsplit_once('/').map_or("", |(ns, _)| ns) == ns)
             .collect();
         here.iter()
-            .find(|t| t.name == format!("{ns}/camera_info") || t.name == format!("{ns}/calibration"))
+            .find(|t| {
+                t.name == format!("{ns}/camera_info") || t.name == format!("{ns}/calibration")
+            })
             .or_else(|| if here.len() == 1 { here.first() } else { None })
             .copied()
     }

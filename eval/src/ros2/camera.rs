@@ -58,7 +58,8 @@ impl Calibration {
             ));
         }
         let (rx, ry, rw, rh) = self.roi;
-        let full = (rx, ry) == (0, 0) && (rw == 0 || rw == self.width) && (rh == 0 || rh == self.height);
+        let full =
+            (rx, ry) == (0, 0) && (rw == 0 || rw == self.width) && (rh == 0 || rh == self.height);
         if !full {
             return Err(format!(
                 "region of interest {rw} x {rh} at ({rx}, {ry}) is not supported"

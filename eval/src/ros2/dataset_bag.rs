@@ -34,7 +34,8 @@ pub const FILE_NAME: &str = "dataset.ros2.mcap";
 /// Frame id of the camera, as in the dataset's own MCAP.
 const FRAME: &str = "camera";
 
-const SEP: &str = "\n================================================================================\n";
+const SEP: &str =
+    "\n================================================================================\n";
 const TIME_DEF: &str = "int32 sec\nuint32 nanosec";
 const HEADER_DEF: &str = "builtin_interfaces/Time stamp\nstring frame_id";
 const ROI_DEF: &str =
@@ -92,12 +93,17 @@ pub fn from_dataset_mcap(path: &Path) -> Result<Vec<u8>> {
         &info_deps,
     );
     let none = BTreeMap::new();
-    let mut channel = |w: &mut mcap::Writer<_>, ty: &str, def: &str, topic: &str| {
+    let channel = |w: &mut mcap::Writer<_>, ty: &str, def: &str, topic: &str| {
         let s = w.add_schema(ty, "ros2msg", def.as_bytes())?;
         w.add_channel(s, topic, "cdr", &none)
     };
-    let image = channel(&mut w, "sensor_msgs/msg/Image", &image_def, "/camera/image_raw")
-        .map_err(wr)?;
+    let image = channel(
+        &mut w,
+        "sensor_msgs/msg/Image",
+        &image_def,
+        "/camera/image_raw",
+    )
+    .map_err(wr)?;
     let info = channel(
         &mut w,
         "sensor_msgs/msg/CameraInfo",
@@ -105,8 +111,13 @@ pub fn from_dataset_mcap(path: &Path) -> Result<Vec<u8>> {
         "/camera/camera_info",
     )
     .map_err(wr)?;
-    let truth = channel(&mut w, "std_msgs/msg/String", "string data", "/ground_truth")
-        .map_err(wr)?;
+    let truth = channel(
+        &mut w,
+        "std_msgs/msg/String",
+        "string data",
+        "/ground_truth",
+    )
+    .map_err(wr)?;
     let mut sequence = 0u32;
     for m in mcap::io::MessageReader::new(BufReader::new(file)) {
         let m = m.map_err(|e| bad(format!("damaged MCAP: {e}")))?;
@@ -130,18 +141,24 @@ pub fn from_dataset_mcap(path: &Path) -> Result<Vec<u8>> {
                     step: grey.width(),
                     data: std::borrow::Cow::Borrowed(grey.as_raw()),
                 };
-                (image, msgs::encode(&msg).map_err(|e| at("/camera/image", e))?)
+                (
+                    image,
+                    msgs::encode(&msg).map_err(|e| at("/camera/image", e))?,
+                )
             }
             "/camera/calibration" => {
                 let cal: FoxgloveCalibration = serde_json::from_slice(&m.data)
                     .map_err(|e| at("/camera/calibration", e.to_string()))?;
                 let mut ci = cal.to_camera_info(m.log_time);
                 ci.header.frame_id = FRAME.into();
-                (info, msgs::encode(&ci).map_err(|e| at("/camera/calibration", e))?)
+                (
+                    info,
+                    msgs::encode(&ci).map_err(|e| at("/camera/calibration", e))?,
+                )
             }
             "/ground_truth" => {
-                let text = std::str::from_utf8(&m.data)
-                    .map_err(|e| at("/ground_truth", e.to_string()))?;
+                let text =
+                    std::str::from_utf8(&m.data).map_err(|e| at("/ground_truth", e.to_string()))?;
                 (
                     truth,
                     msgs::encode(&StringMsg { data: text }).map_err(|e| at("/ground_truth", e))?,

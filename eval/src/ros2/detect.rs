@@ -122,25 +122,29 @@ pub fn plan(opts: &BagDetectOptions) -> Result<Plan> {
     let mut cameras = Vec::new();
     let mut camera_source = None;
     if let Some((name, cal)) = &opts.camera {
-        let model = cal
-            .model()
-            .map_err(|m| EvalError::InvalidParameter {
-                name: "--camera",
-                reason: format!("{name}: {m}"),
-            })?;
+        let model = cal.model().map_err(|m| EvalError::InvalidParameter {
+            name: "--camera",
+            reason: format!("{name}: {m}"),
+        })?;
         cameras.push((0, model));
         camera_source = Some(name.clone());
     } else if let Some(info) = scan.sibling_calibration(&topic) {
         let mut last: Option<Calibration> = None;
         for (t, data) in scan.calibrations.get(&info.name).into_iter().flatten() {
             let cal = calibration(info.kind, data).map_err(|m| {
-                bad(path, format!("{} message at {}: {m}", info.name, seconds(*t)))
+                bad(
+                    path,
+                    format!("{} message at {}: {m}", info.name, seconds(*t)),
+                )
             })?;
             if last.as_ref() == Some(&cal) {
                 continue;
             }
             let model = cal.model().map_err(|m| {
-                bad(path, format!("{} message at {}: {m}", info.name, seconds(*t)))
+                bad(
+                    path,
+                    format!("{} message at {}: {m}", info.name, seconds(*t)),
+                )
             })?;
             cameras.push((*t, model));
             last = Some(cal);
@@ -158,7 +162,9 @@ pub fn plan(opts: &BagDetectOptions) -> Result<Plan> {
                     .name
                     .trim_end_matches("/compressed")
                     .rsplit_once('/')
-                    .map_or("/camera_info".to_string(), |(ns, _)| format!("{ns}/camera_info"))
+                    .map_or("/camera_info".to_string(), |(ns, _)| format!(
+                        "{ns}/camera_info"
+                    ))
             ),
         ));
     }

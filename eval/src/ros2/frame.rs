@@ -135,7 +135,9 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
                 }
             }
             let dynamic = if bpp == 3 {
-                DynamicImage::ImageRgb8(RgbImage::from_raw(img.width, img.height, data).ok_or("size")?)
+                DynamicImage::ImageRgb8(
+                    RgbImage::from_raw(img.width, img.height, data).ok_or("size")?,
+                )
             } else {
                 DynamicImage::ImageRgba8(
                     RgbaImage::from_raw(img.width, img.height, data).ok_or("size")?,
@@ -208,8 +210,9 @@ impl FoxgloveImage {
     /// The stamp in ns (0 without one).
     #[must_use]
     pub fn stamp(&self) -> u64 {
-        self.timestamp
-            .map_or(0, |t| t.sec.saturating_mul(1_000_000_000).saturating_add(t.nsec))
+        self.timestamp.map_or(0, |t| {
+            t.sec.saturating_mul(1_000_000_000).saturating_add(t.nsec)
+        })
     }
 
     /// The compressed file's bytes.
@@ -273,7 +276,10 @@ mod tests {
             assert_eq!(pixels(&g), grey, "{enc}");
         }
         // 12-bit values in 16-bit words keep their top 8 bits.
-        let words: Vec<u8> = grey.iter().flat_map(|&v| (u16::from(v) << 4).to_le_bytes()).collect();
+        let words: Vec<u8> = grey
+            .iter()
+            .flat_map(|&v| (u16::from(v) << 4).to_le_bytes())
+            .collect();
         let g = from_image(&image("mono16", 3, 2, 6, &words)).unwrap();
         assert_eq!(pixels(&g), grey);
     }
@@ -299,6 +305,8 @@ mod tests {
         assert!(e.contains("row step 8"), "{e}");
         assert!(compressed_format("bgr8; jpeg compressed bgr8").is_ok());
         assert!(compressed_format("16UC1; compressedDepth png").is_err());
-        assert!(from_compressed("png", b"not a png").unwrap_err().contains("cannot decode"));
+        assert!(from_compressed("png", b"not a png")
+            .unwrap_err()
+            .contains("cannot decode"));
     }
 }

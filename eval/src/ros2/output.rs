@@ -196,7 +196,12 @@ impl BagOutput {
             .as_object()
             .map(|o| {
                 o.iter()
-                    .map(|(k, v)| (k.clone(), v.as_str().map_or_else(|| v.to_string(), str::to_string)))
+                    .map(|(k, v)| {
+                        (
+                            k.clone(),
+                            v.as_str().map_or_else(|| v.to_string(), str::to_string),
+                        )
+                    })
                     .collect()
             })
             .unwrap_or_default();
@@ -205,7 +210,7 @@ impl BagOutput {
             metadata,
         })?;
         let none = BTreeMap::new();
-        let mut channel = |w: &mut mcap::Writer<_>, name: &str, schema: Value, topic: &str| {
+        let channel = |w: &mut mcap::Writer<_>, name: &str, schema: Value, topic: &str| {
             let s = w.add_schema(name, "jsonschema", schema.to_string().as_bytes())?;
             w.add_channel(s, topic, "json", &none)
         };
@@ -264,7 +269,8 @@ impl BagOutput {
                 })
                 .collect(),
         };
-        let text = serde_json::to_vec(&msg).map_err(|e| mcap::McapError::Io(std::io::Error::other(e)))?;
+        let text =
+            serde_json::to_vec(&msg).map_err(|e| mcap::McapError::Io(std::io::Error::other(e)))?;
         self.writer
             .write_to_known_channel(&header(self.detections), &text)?;
         let ann = annotations_at(&time(f.stamp), &f.detections);
