@@ -139,8 +139,7 @@ pub fn scan(path: &Path) -> Result<Scan> {
     let mut by_channel: BTreeMap<u16, usize> = BTreeMap::new();
     let mut calibrations: BTreeMap<String, Vec<(u64, Vec<u8>)>> = BTreeMap::new();
     let mut damage = None;
-    let mut count = 0;
-    for msg in reader(path)? {
+    for (count, msg) in reader(path)?.enumerate() {
         let msg = match msg {
             Ok(m) => m,
             Err(e) => {
@@ -151,7 +150,6 @@ pub fn scan(path: &Path) -> Result<Scan> {
                 break;
             }
         };
-        count += 1;
         let slot = *by_channel.entry(msg.channel.id).or_insert_with(|| {
             let schema = msg.channel.schema.as_ref().map_or("", |s| s.name.as_str());
             topics.push(Topic {

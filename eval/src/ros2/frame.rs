@@ -93,7 +93,7 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
     let rows = || (0..h).map(|y| &data[y * step..y * step + row]);
     Ok(match img.encoding.as_str() {
         "mono8" => match &img.data {
-            Cow::Borrowed(b) => Gray::Borrowed(*b, img.width, img.height, step),
+            Cow::Borrowed(b) => Gray::Borrowed(b, img.width, img.height, step),
             Cow::Owned(_) => Gray::Owned(
                 GrayImage::from_raw(img.width, img.height, rows().flatten().copied().collect())
                     .ok_or("size")?,
@@ -229,7 +229,7 @@ mod tests {
     use super::*;
     use crate::ros2::msgs::Header;
 
-    fn image(encoding: &str, w: u32, h: u32, step: u32, data: &[u8]) -> Image<'_> {
+    fn image<'a>(encoding: &str, w: u32, h: u32, step: u32, data: &'a [u8]) -> Image<'a> {
         Image {
             header: Header::default(),
             height: h,

@@ -151,7 +151,7 @@ mod bytes {
     /// count cannot allocate gigabytes up front.
     const MAX_PREALLOC: usize = 3840 * 2160 * 4;
 
-    pub fn serialize<S: Serializer>(data: &Cow<'_, [u8]>, s: S) -> Result<S::Ok, S::Error> {
+    pub fn serialize<S: Serializer>(data: &[u8], s: S) -> Result<S::Ok, S::Error> {
         s.serialize_bytes(data)
     }
 
