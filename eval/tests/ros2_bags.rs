@@ -735,3 +735,38 @@ print(json.dumps(out))
         assert_eq!(frame[2]["ids"], serde_json::json!([42, 1234]));
     }
 }
+
+#[test]
+fn camera_file_gives_the_poses() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let bag = write_bag(
+        &py,
+        dir.path(),
+        "no-info.mcap",
+        serde_json::json!([{"name": "/cam/image_raw", "kind": "mono8"}]),
+    );
+    let c = &fixture().camera;
+    let yaml = |fx: &serde_json::Value| {
+        format!(
+            "%YAML:1.0\n---\nimage_width: {}\nimage_height: {}\ncamera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ {}, 0., {}, 0., {}, {}, 0., 0., 1. ]\ndistortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: {}\n",
+            c["width"], c["height"], fx, c["cx"], c["fy"], c["cy"], c["distortion"]
+        )
+    };
+    let file = dir.path().join("camera.yaml");
+    std::fs::write(&file, yaml(&c["fx"])).unwrap();
+    let out = dir.path().join("out.mcap");
+    let o = detect(
+        &bag,
+        &out,
+        &["--tag-size", "0.05", "--camera", file.to_str().unwrap()],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    check_against_truth(&out, "cam_optical", |i| (stamp(i), stamp(i) + LOG_DELAY_NS));
+    std::fs::write(&file, yaml(&0.into())).unwrap();
+    refused(
+        &bag,
+        &["--tag-size", "0.05", "--camera", file.to_str().unwrap()],
+        &["--camera", "fx (K[0]) = 0"],
+    );
+}

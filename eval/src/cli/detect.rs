@@ -47,8 +47,10 @@ pub struct DetectArgs {
 
     /// Camera calibration to use instead of the recording's CameraInfo (by
     /// default the sensor_msgs/msg/CameraInfo topic beside the image topic,
-    /// e.g. /cam/camera_info for /cam/image_raw): a foxglove.CameraCalibration
-    /// JSON file. Only plumb_bob distortion.
+    /// e.g. /cam/camera_info for /cam/image_raw): OpenCV or ROS
+    /// camera_calibration YAML (image_width, image_height, camera_matrix,
+    /// distortion_coefficients) or a foxglove.CameraCalibration JSON file.
+    /// Only plumb_bob distortion.
     #[arg(long, value_name = "FILE", requires = "mcap")]
     pub(super) camera: Option<PathBuf>,
 

@@ -3,24 +3,19 @@
 
 use std::path::Path;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{anyhow, bail, Context, Result};
 use coppertag::DetectorConfig;
 use coppertag_eval::atomic::write_atomic;
-use coppertag_eval::ros2::camera::{Calibration, FoxgloveCalibration};
+use coppertag_eval::ros2::camera::Calibration;
+use coppertag_eval::ros2::camera_file;
 use coppertag_eval::ros2::detect::{self, BagDetectOptions};
 
 use super::detect::DetectArgs;
 
-/// Reads a `--camera` file: a `foxglove.CameraCalibration` in JSON.
+/// Reads a `--camera` file (JSON or YAML; see `ros2::camera_file`).
 fn camera_file(path: &Path) -> Result<(String, Calibration)> {
-    let text = std::fs::read(path).with_context(|| format!("--camera {}", path.display()))?;
-    let cal: FoxgloveCalibration = serde_json::from_slice(&text).with_context(|| {
-        format!(
-            "--camera {}: not a foxglove.CameraCalibration JSON file",
-            path.display()
-        )
-    })?;
-    Ok((path.display().to_string(), (&cal).into()))
+    let cal = camera_file::read(path).map_err(|m| anyhow!("--camera {}: {m}", path.display()))?;
+    Ok((path.display().to_string(), cal))
 }
 
 /// Runs detection over `input`, writing `args.output`.

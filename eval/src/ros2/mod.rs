@@ -10,6 +10,7 @@
 
 pub mod bag;
 pub mod camera;
+pub mod camera_file;
 pub mod dataset_bag;
 pub mod detect;
 pub mod frame;
