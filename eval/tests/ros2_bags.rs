@@ -132,8 +132,9 @@ with open(spec["out"], "wb") as f:
             header = {"stamp": {"sec": frame["stamp"] // 10**9, "nanosec": frame["stamp"] % 10**9},
                       "frame_id": t.get("frame_id", "cam_optical")}
             kind = t["kind"]
-            if kind in ("mono8", "bgr8", "32FC1"):
-                if kind == "mono8":
+            if kind in ("mono8", "bgr8", "32FC1", "bayer_rggb8"):
+                if kind in ("mono8", "bayer_rggb8"):
+                    # A grey scene through any colour filter mosaic is that grey.
                     data, step = grey.tobytes(), wd
                 elif kind == "bgr8":
                     data, step = np.repeat(grey[:, :, None], 3, axis=2).tobytes(), wd * 3
@@ -272,6 +273,8 @@ fn good_topics() -> serde_json::Value {
         {"name": "/color/camera_info", "kind": "camera_info", "frame_id": "color_optical"},
         {"name": "/gray/image_raw/compressed", "kind": "png"},
         {"name": "/gray/camera_info", "kind": "camera_info"},
+        {"name": "/bayer/image_raw", "kind": "bayer_rggb8"},
+        {"name": "/bayer/camera_info", "kind": "camera_info"},
         {"name": "/chatter", "kind": "string"},
     ])
 }
@@ -386,6 +389,7 @@ fn every_encoding_finds_the_truth() {
         ("/color/image_raw", "color_optical"),
         ("/color/image_raw/compressed", "color_optical"),
         ("/gray/image_raw/compressed", "cam_optical"),
+        ("/bayer/image_raw", "cam_optical"),
     ] {
         let out = dir.path().join(format!("{}.mcap", topic.replace('/', "_")));
         let o = detect(bag, &out, &["--topic", topic, "--tag-size", "0.05"]);
@@ -524,7 +528,7 @@ fn bad_recordings_are_refused_by_name() {
         good_bag(&py),
         &[],
         &[
-            "4 image topics",
+            "5 image topics",
             "--topic",
             "/mono/image_raw",
             "/gray/image_raw/compressed",

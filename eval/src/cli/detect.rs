@@ -30,8 +30,8 @@ pub struct DetectArgs {
     pub(super) images: Vec<PathBuf>,
 
     /// Read a recording instead of image files: a rosbag2 MCAP file
-    /// (sensor_msgs/msg/Image in mono8, mono16, rgb8, bgr8, rgba8 or bgra8,
-    /// or sensor_msgs/msg/CompressedImage in JPEG or PNG; CDR) or a
+    /// (sensor_msgs/msg/Image in mono8, mono16, rgb8, bgr8, rgba8, bgra8 or
+    /// 8-bit Bayer, or sensor_msgs/msg/CompressedImage in JPEG or PNG; CDR) or a
     /// dataset.mcap written by `coppertag synth`. Needs -o.
     #[arg(long, value_name = "IN.mcap", requires = "output")]
     pub(super) mcap: Option<PathBuf>,

@@ -6,6 +6,7 @@
 //! | `sensor_msgs/msg/Image` | `mono8` | read in place, any row step |
 //! | | `mono16` | shifted to 8 bits ([`mono16_shift`]) |
 //! | | `rgb8`, `bgr8`, `rgba8`, `bgra8` | the `image` crate's luma weights, as `coppertag detect` on a PNG |
+//! | | `bayer_rggb8`, `bayer_bggr8`, `bayer_gbrg8`, `bayer_grbg8` | [`bayer_luma`] |
 //! | `sensor_msgs/msg/CompressedImage`, `foxglove.CompressedImage` | `jpeg`, `png` | decoded by the `image` crate |
 
 use std::borrow::Cow;
@@ -15,7 +16,18 @@ use image::{DynamicImage, GrayImage, ImageFormat, RgbImage, RgbaImage};
 use super::msgs::{CompressedImage, Image};
 
 /// Encodings of `sensor_msgs/msg/Image` that are read.
-pub const IMAGE_ENCODINGS: &[&str] = &["mono8", "mono16", "rgb8", "bgr8", "rgba8", "bgra8"];
+pub const IMAGE_ENCODINGS: &[&str] = &[
+    "mono8",
+    "mono16",
+    "rgb8",
+    "bgr8",
+    "rgba8",
+    "bgra8",
+    "bayer_rggb8",
+    "bayer_bggr8",
+    "bayer_gbrg8",
+    "bayer_grbg8",
+];
 
 /// A grey frame: borrowed from the message when it is `mono8`, else
 /// converted.
@@ -61,7 +73,7 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
     let (w, h) = (img.width as usize, img.height as usize);
     let data: &[u8] = &img.data;
     let bpp = match img.encoding.as_str() {
-        "mono8" => 1,
+        "mono8" | "bayer_rggb8" | "bayer_bggr8" | "bayer_gbrg8" | "bayer_grbg8" => 1,
         "mono16" => 2,
         "rgb8" | "bgr8" => 3,
         "rgba8" | "bgra8" => 4,
@@ -118,6 +130,10 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
                 .collect();
             Gray::Owned(GrayImage::from_raw(img.width, img.height, data).ok_or("size")?)
         }
+        enc if enc.starts_with("bayer_") => {
+            let rows: Vec<&[u8]> = rows().collect();
+            Gray::Owned(bayer_luma(&rows, img.width, img.height))
+        }
         enc => {
             // Packed RGB(A) in the image crate's order, then its grey.
             let swap = enc.starts_with("bgr");
@@ -145,6 +161,33 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
             };
             Gray::Owned(dynamic.to_luma8())
         }
+    })
+}
+
+/// Grey from a Bayer mosaic without demosaicing: the 3 x 3 binomial
+/// kernel `[1 2 1; 2 4 2; 1 2 1] / 16` centred on each pixel weighs the
+/// mosaic's red, green and blue as `(R + 2 G + B) / 4` whatever the
+/// pixel's place in the 2 x 2 pattern (a red or blue centre: 4 + 8 + 4;
+/// a green one: 8 for green, 4 each for red and blue), so every Bayer
+/// order gives the same luma, centred on the pixel (no half-pixel shift
+/// for the corners). Borders repeat the edge pixels.
+#[must_use]
+pub fn bayer_luma(rows: &[&[u8]], width: u32, height: u32) -> GrayImage {
+    let (w, h) = (width as usize, height as usize);
+    let at = |x: isize, y: isize| -> u32 {
+        let xi = x.clamp(0, w as isize - 1) as usize;
+        let yi = y.clamp(0, h as isize - 1) as usize;
+        u32::from(rows[yi][xi])
+    };
+    GrayImage::from_fn(width, height, |x, y| {
+        let (x, y) = (x as isize, y as isize);
+        let sum = 4 * at(x, y)
+            + 2 * (at(x - 1, y) + at(x + 1, y) + at(x, y - 1) + at(x, y + 1))
+            + at(x - 1, y - 1)
+            + at(x + 1, y - 1)
+            + at(x - 1, y + 1)
+            + at(x + 1, y + 1);
+        image::Luma([((sum + 8) / 16) as u8])
     })
 }
 
@@ -282,6 +325,32 @@ mod tests {
             .collect();
         let g = from_image(&image("mono16", 3, 2, 6, &words)).unwrap();
         assert_eq!(pixels(&g), grey);
+    }
+
+    #[test]
+    fn bayer_mosaics_of_a_grey_scene_are_that_grey() {
+        // Any order: a uniform grey scene gives a uniform mosaic.
+        let flat = [90u8; 16];
+        let g = from_image(&image("bayer_rggb8", 4, 4, 4, &flat)).unwrap();
+        assert!(pixels(&g).iter().all(|&v| v == 90));
+        // R = 200, G = 100, B = 0 in RGGB: luma (R + 2G + B) / 4 = 100 everywhere inside.
+        let mut m = vec![0u8; 36];
+        for y in 0..6 {
+            for x in 0..6 {
+                m[y * 6 + x] = match (y % 2, x % 2) {
+                    (0, 0) => 200,
+                    (1, 1) => 0,
+                    _ => 100,
+                };
+            }
+        }
+        let g = from_image(&image("bayer_rggb8", 6, 6, 6, &m)).unwrap();
+        let p = pixels(&g);
+        for y in 1..5 {
+            for x in 1..5 {
+                assert_eq!(p[y * 6 + x], 100, "({x}, {y})");
+            }
+        }
     }
 
     #[test]
