@@ -591,7 +591,10 @@ fn bad_recordings_are_refused_by_name() {
     refused(
         &bag,
         &["--tag-size", "0.05"],
-        &["--tag-size needs a camera model", "/cam/camera_info"],
+        &[
+            "--tag-size/--tag-sizes need a camera model",
+            "/cam/camera_info",
+        ],
     );
 }
 
@@ -767,6 +770,28 @@ fn camera_file_gives_the_poses() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     check_against_truth(&out, "cam_optical", |i| (stamp(i), stamp(i) + LOG_DELAY_NS));
+    // Only the tag given a size gets a pose and a transform.
+    let o = detect(
+        &bag,
+        &out,
+        &[
+            "--tag-sizes",
+            "ct8:1234=0.05",
+            "--camera",
+            file.to_str().unwrap(),
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let msgs = messages(&out);
+    for (_, m) in &msgs["/coppertag/detections"] {
+        for d in m["detections"].as_array().unwrap() {
+            assert_eq!(d.get("pose").is_some(), d["family"] == "ct8", "{d}");
+        }
+    }
+    for (_, m) in &msgs["/coppertag/tf"] {
+        assert_eq!(m["transforms"].as_array().unwrap().len(), 1);
+        assert_eq!(m["transforms"][0]["child_frame_id"], "tag_ct8_1234");
+    }
     std::fs::write(&file, yaml(&0.into())).unwrap();
     refused(
         &bag,

@@ -109,6 +109,13 @@ pub struct DetectArgs {
     /// recording's CameraInfo or --camera.
     #[arg(long, value_parser = positive_metres)]
     pub(super) tag_size: Option<f64>,
+
+    /// Sides of particular tags' data squares with --mcap, as
+    /// FAMILY:ID=METRES, comma separated (e.g. ct14:42=0.08,ct8:7=0.03);
+    /// they win over --tag-size, and without --tag-size only these tags
+    /// get a pose.
+    #[arg(long, value_delimiter = ',', value_parser = parse_tag_size, requires = "mcap")]
+    pub(super) tag_sizes: Vec<TagSize>,
 }
 
 #[derive(Serialize)]
@@ -127,6 +134,29 @@ struct JsonImage<'a> {
     image: &'a str,
     ms: f64,
     detections: Vec<JsonDetection<'a>>,
+}
+
+/// One `--tag-sizes` entry.
+#[derive(Debug, Clone)]
+pub(super) struct TagSize {
+    pub(super) family: String,
+    pub(super) id: u64,
+    pub(super) metres: f64,
+}
+
+fn parse_tag_size(s: &str) -> std::result::Result<TagSize, String> {
+    let bad = || format!("'{s}' is not FAMILY:ID=METRES (e.g. ct14:42=0.05)");
+    let (tag, size) = s.split_once('=').ok_or_else(bad)?;
+    let (family, id) = tag.split_once(':').ok_or_else(bad)?;
+    let id: u64 = id.trim().parse().map_err(|_| bad())?;
+    if family.trim().is_empty() {
+        return Err(bad());
+    }
+    Ok(TagSize {
+        family: family.trim().to_string(),
+        id,
+        metres: positive_metres(size.trim())?,
+    })
 }
 
 fn positive_metres(s: &str) -> std::result::Result<f64, String> {

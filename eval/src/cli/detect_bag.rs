@@ -33,6 +33,11 @@ pub fn run(args: &DetectArgs, input: &Path, config: DetectorConfig) -> Result<()
         topic: args.topic.clone(),
         config,
         tag_size: args.tag_size,
+        tag_sizes: args
+            .tag_sizes
+            .iter()
+            .map(|t| ((t.family.clone(), t.id), t.metres))
+            .collect(),
         camera: args.camera.as_deref().map(camera_file).transpose()?,
         allow_truncated: args.allow_truncated,
     };

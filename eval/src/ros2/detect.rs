@@ -40,12 +40,32 @@ pub struct BagDetectOptions {
     pub config: DetectorConfig,
     /// Data-square side, metres; poses need it.
     pub tag_size: Option<f64>,
+    /// Data-square sides of particular tags, metres, by (family, id);
+    /// they win over `tag_size`.
+    pub tag_sizes: std::collections::BTreeMap<(String, u64), f64>,
     /// A calibration from a file (its name, its content), used instead of
     /// the recording's.
     pub camera: Option<(String, Calibration)>,
     /// Keep the frames before damage in a truncated or damaged bag instead
     /// of refusing it.
     pub allow_truncated: bool,
+}
+
+impl BagDetectOptions {
+    /// Whether any tag gets a pose.
+    #[must_use]
+    pub fn wants_poses(&self) -> bool {
+        self.tag_size.is_some() || !self.tag_sizes.is_empty()
+    }
+
+    /// The data-square side of a tag: its own, else the common one.
+    #[must_use]
+    pub fn side_of(&self, family: &str, id: u64) -> Option<f64> {
+        self.tag_sizes
+            .get(&(family.to_string(), id))
+            .copied()
+            .or(self.tag_size)
+    }
 }
 
 /// A recording checked and ready to run: its topic, its camera.
@@ -151,11 +171,11 @@ pub fn plan(opts: &BagDetectOptions) -> Result<Plan> {
         }
         camera_source = Some(info.name.clone());
     }
-    if opts.tag_size.is_some() && cameras.is_empty() {
+    if opts.wants_poses() && cameras.is_empty() {
         return Err(bad(
             path,
             format!(
-                "--tag-size needs a camera model: no sensor_msgs/msg/CameraInfo beside {} \
+                "--tag-size/--tag-sizes need a camera model: no sensor_msgs/msg/CameraInfo beside {} \
                  (for example {}); give one with --camera FILE",
                 topic.name,
                 topic
@@ -229,7 +249,7 @@ fn one_frame(
     let poses = found
         .iter()
         .map(|d| {
-            let (cam, side) = (camera?, opts.tag_size?);
+            let (cam, side) = (camera?, opts.side_of(&d.family, d.id)?);
             cam.tag_pose(&d.corners, side).ok()
         })
         .collect();
@@ -268,6 +288,12 @@ pub fn run(
         topic: plan.topic.name.clone(),
         camera: plan.camera_source.clone().unwrap_or_default(),
         tag_size_m: opts.tag_size,
+        tag_sizes_m: opts
+            .tag_sizes
+            .iter()
+            .map(|((f, id), s)| format!("{f}:{id}={s}"))
+            .collect::<Vec<_>>()
+            .join(","),
         families: opts
             .config
             .families
@@ -279,7 +305,7 @@ pub fn run(
         truncated: plan.truncated,
         version: env!("CARGO_PKG_VERSION").into(),
     };
-    let poses = opts.tag_size.is_some() && !plan.cameras.is_empty();
+    let poses = opts.wants_poses() && !plan.cameras.is_empty();
     let write_err = |e: mcap::McapError| bad(path, format!("cannot write the output MCAP: {e}"));
     let mut out = BagOutput::new(&facts, poses).map_err(write_err)?;
     let pool: Mutex<Vec<Detector>> = Mutex::new(Vec::new());

@@ -65,6 +65,8 @@ pub struct RunFacts {
     pub camera: String,
     /// Data-square side, metres, or empty when no poses were made.
     pub tag_size_m: Option<f64>,
+    /// Per-tag sides, `family:id=metres`, comma separated.
+    pub tag_sizes_m: String,
     /// Families searched.
     pub families: String,
     /// Frames read.
