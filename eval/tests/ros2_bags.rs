@@ -799,3 +799,57 @@ fn camera_file_gives_the_poses() {
         &["--camera", "fx (K[0]) = 0"],
     );
 }
+
+#[test]
+fn recordings_evaluate_without_truth() {
+    let Some(py) = python() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tags.mcap");
+    let o = detect(
+        good_bag(&py),
+        &out,
+        &["--topic", "/mono/image_raw", "--tag-size", "0.05"],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Frames 0 and 1 (0 s and 0.1 s): the tags turn 20 degrees in their
+    // planes between them, so each is 10 degrees from their mean.
+    let res = dir.path().join("results");
+    let o = coppertag()
+        .args(["eval", "--recording", "--still", "0:0.15", "--json", "-o"])
+        .arg(&res)
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let tags = v["recordings"][out.display().to_string()]
+        .as_array()
+        .unwrap()
+        .clone();
+    assert_eq!(tags.len(), 2);
+    for t in &tags {
+        assert_eq!(
+            (t["frames_seen"].as_u64(), t["frames"].as_u64()),
+            (Some(3), Some(3)),
+            "{t}"
+        );
+        assert_eq!(t["corrected_frames"], 0);
+        let j = &t["jitter"];
+        assert_eq!(j["frames"], 2);
+        assert!(j["corner_px"].as_f64().unwrap() > 1.0, "{t}");
+        let rot = j["rotation_deg"].as_f64().unwrap();
+        assert!((rot - 10.0).abs() < 0.3, "{t}");
+    }
+    assert!(res.join("stability.json").is_file());
+    // A file that is not a detect output is refused.
+    let o = coppertag()
+        .args(["eval", "--recording", "-o"])
+        .arg(&res)
+        .arg(good_bag(&py))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("not an output of `coppertag detect --mcap`")
+    );
+}

@@ -16,3 +16,4 @@ pub mod detect;
 pub mod frame;
 pub mod msgs;
 pub mod output;
+pub mod stability;
