@@ -2,7 +2,8 @@
 //! detector, in parallel, with poses when the camera and tag size are
 //! known, written as [`super::output`] describes.
 //!
-//! Frames are read in batches of [`BATCH_FRAMES`]; the frames of a batch
+//! Frames are read in batches of [`BATCH_FRAMES`] on a reader thread (the
+//! next batch while the current one is detected); the frames of a batch
 //! are decoded and detected in parallel (rayon), each worker with a
 //! detector of its own taken from a shared pool, and their results are
 //! written in the recording's order. A frame's result depends on that
@@ -319,43 +320,66 @@ pub fn run(
             }),
         }
     };
-    let mut frames = bag::frames(path, &plan.topic.name, plan.frames)?;
     let (mut done, mut detections, mut with_pose) = (0, 0, 0);
-    loop {
-        let batch: Vec<RawFrame> = frames.by_ref().take(BATCH_FRAMES).collect::<Result<_>>()?;
-        if batch.is_empty() {
-            break;
-        }
-        let results: Vec<Result<FrameResult>> = batch
-            .par_iter()
-            .map(|raw| {
-                let mut det = take()?;
-                let r = one_frame(plan, opts, &mut det, raw).map_err(|m| {
-                    bad(
-                        path,
-                        format!(
-                            "{} message {} (log time {}): {m}",
-                            plan.topic.name,
-                            raw.index,
-                            seconds(raw.log_time)
-                        ),
-                    )
-                });
-                if let Ok(mut p) = pool.lock() {
-                    p.push(det);
+    // The next batch is read (decompressed and copied out of the bag) on a
+    // thread of its own while this one is detected; batches still arrive
+    // in the bag's order.
+    std::thread::scope(|scope| -> Result<()> {
+        let (tx, rx) = std::sync::mpsc::sync_channel::<Result<Vec<RawFrame>>>(1);
+        scope.spawn(move || {
+            let mut frames = match bag::frames(path, &plan.topic.name, plan.frames) {
+                Ok(f) => f,
+                Err(e) => {
+                    let _ = tx.send(Err(e));
+                    return;
                 }
-                r
-            })
-            .collect();
-        for r in results {
-            let f = r?;
-            detections += f.detections.len();
-            with_pose += f.poses.iter().filter(|p| p.is_some()).count();
-            out.write_frame(&f).map_err(write_err)?;
-            done += 1;
+            };
+            loop {
+                let batch: Result<Vec<RawFrame>> = frames.by_ref().take(BATCH_FRAMES).collect();
+                let last = batch.as_ref().map_or(true, Vec::is_empty);
+                // A closed channel means the run stopped on an error.
+                if tx.send(batch).is_err() || last {
+                    break;
+                }
+            }
+        });
+        for batch in rx {
+            let batch = batch?;
+            if batch.is_empty() {
+                break;
+            }
+            let results: Vec<Result<FrameResult>> = batch
+                .par_iter()
+                .map(|raw| {
+                    let mut det = take()?;
+                    let r = one_frame(plan, opts, &mut det, raw).map_err(|m| {
+                        bad(
+                            path,
+                            format!(
+                                "{} message {} (log time {}): {m}",
+                                plan.topic.name,
+                                raw.index,
+                                seconds(raw.log_time)
+                            ),
+                        )
+                    });
+                    if let Ok(mut p) = pool.lock() {
+                        p.push(det);
+                    }
+                    r
+                })
+                .collect();
+            for r in results {
+                let f = r?;
+                detections += f.detections.len();
+                with_pose += f.poses.iter().filter(|p| p.is_some()).count();
+                out.write_frame(&f).map_err(write_err)?;
+                done += 1;
+            }
+            progress(done);
         }
-        progress(done);
-    }
+        Ok(())
+    })?;
     let wall_s = start.elapsed().as_secs_f64();
     Ok(Outcome {
         mcap: out.finish().map_err(write_err)?,
