@@ -5,13 +5,13 @@
 //! |---|---|---|
 //! | `sensor_msgs/msg/Image` | `mono8` | read in place, any row step |
 //! | | `mono16` | shifted to 8 bits ([`mono16_shift`]) |
-//! | | `rgb8`, `bgr8`, `rgba8`, `bgra8` | the `image` crate's luma weights, as `coppertag detect` on a PNG |
+//! | | `rgb8`, `bgr8`, `rgba8`, `bgra8` | Rec. 709 luma (the `image` crate's weights, as `coppertag detect` on a PNG) |
 //! | | `bayer_rggb8`, `bayer_bggr8`, `bayer_gbrg8`, `bayer_grbg8` | [`bayer_luma`] |
 //! | `sensor_msgs/msg/CompressedImage`, `foxglove.CompressedImage` | `jpeg`, `png` | decoded by the `image` crate |
 
 use std::borrow::Cow;
 
-use image::{DynamicImage, GrayImage, ImageFormat, RgbImage, RgbaImage};
+use image::{GrayImage, ImageFormat};
 
 use super::msgs::{CompressedImage, Image};
 
@@ -135,33 +135,32 @@ pub fn from_image<'a>(img: &Image<'a>) -> Result<Gray<'a>, String> {
             Gray::Owned(bayer_luma(&rows, img.width, img.height))
         }
         enc => {
-            // Packed RGB(A) in the image crate's order, then its grey.
-            let swap = enc.starts_with("bgr");
-            let mut data = Vec::with_capacity(w * h * bpp);
-            for r in rows() {
-                for p in r.chunks_exact(bpp) {
-                    if swap {
-                        data.extend_from_slice(&[p[2], p[1], p[0]]);
-                        if bpp == 4 {
-                            data.push(p[3]);
-                        }
-                    } else {
-                        data.extend_from_slice(p);
-                    }
-                }
-            }
-            let dynamic = if bpp == 3 {
-                DynamicImage::ImageRgb8(
-                    RgbImage::from_raw(img.width, img.height, data).ok_or("size")?,
-                )
+            // Straight from the message's rows: no packed RGB copy first.
+            let (ri, bi) = if enc.starts_with("bgr") {
+                (2, 0)
             } else {
-                DynamicImage::ImageRgba8(
-                    RgbaImage::from_raw(img.width, img.height, data).ok_or("size")?,
-                )
+                (0, 2)
             };
-            Gray::Owned(dynamic.to_luma8())
+            let mut data = Vec::with_capacity(w * h);
+            for r in rows() {
+                data.extend(r.chunks_exact(bpp).map(|p| luma(p[ri], p[1], p[bi])));
+            }
+            Gray::Owned(GrayImage::from_raw(img.width, img.height, data).ok_or("size")?)
         }
     })
+}
+
+/// Luma weights of sRGB (Rec. 709) in ten-thousandths, the `image` crate's
+/// (`to_luma8`), so a colour frame gives the grey `coppertag detect` gets
+/// from the same picture as a PNG file (to within one level: the crate
+/// rounds in floating point, this in integers).
+const LUMA_WEIGHTS: [u32; 3] = [2126, 7152, 722];
+
+/// Grey of one RGB pixel: the weighted sum, rounded to the nearest level.
+#[inline]
+fn luma(r: u8, g: u8, b: u8) -> u8 {
+    let [wr, wg, wb] = LUMA_WEIGHTS;
+    ((wr * u32::from(r) + wg * u32::from(g) + wb * u32::from(b) + 5_000) / 10_000) as u8
 }
 
 /// Grey from a Bayer mosaic without demosaicing: the 3 x 3 binomial
@@ -271,6 +270,7 @@ impl FoxgloveImage {
 mod tests {
     use super::*;
     use crate::ros2::msgs::Header;
+    use image::{DynamicImage, RgbImage};
 
     fn image<'a>(encoding: &str, w: u32, h: u32, step: u32, data: &'a [u8]) -> Image<'a> {
         Image {
@@ -350,6 +350,25 @@ mod tests {
             for x in 1..5 {
                 assert_eq!(p[y * 6 + x], 100, "({x}, {y})");
             }
+        }
+    }
+
+    #[test]
+    fn luma_is_the_image_crates_within_a_level() {
+        let mut px = Vec::new();
+        for r in (0..=255u8).step_by(15) {
+            for g in (0..=255u8).step_by(17) {
+                for b in (0..=255u8).step_by(51) {
+                    px.extend([r, g, b]);
+                }
+            }
+        }
+        let n = (px.len() / 3) as u32;
+        let theirs =
+            DynamicImage::ImageRgb8(RgbImage::from_raw(n, 1, px.clone()).unwrap()).to_luma8();
+        let ours = from_image(&image("rgb8", n, 1, 3 * n, &px)).unwrap();
+        for (a, b) in pixels(&ours).iter().zip(theirs.into_raw()) {
+            assert!(a.abs_diff(b) <= 1, "{a} vs {b}");
         }
     }
 
