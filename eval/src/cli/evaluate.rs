@@ -29,7 +29,8 @@ pub struct EvalArgs {
     #[arg(required = true)]
     pub runs: Vec<PathBuf>,
 
-    /// Output directory for summary.json and summary.csv.
+    /// Output directory for summary.json and summary.csv (with
+    /// --recording: stability.json).
     #[arg(short, long, default_value = "results")]
     pub output: PathBuf,
 
