@@ -112,4 +112,24 @@ mod tests {
             .unwrap_err()
             .contains("camera_matrix"));
     }
+
+    #[test]
+    fn reads_foxglove_json_by_content() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("cal.txt");
+        std::fs::write(
+            &path,
+            r#"{"width": 640, "height": 480, "distortion_model": "plumb_bob",
+                "D": [-0.1, 0.01, 0, 0, 0], "K": [600, 0, 319.5, 0, 600, 239.5, 0, 0, 1]}"#,
+        )
+        .unwrap();
+        let c = read(&path).unwrap();
+        assert_eq!(c.k[2], 319.5);
+        assert_eq!(c.d.len(), 5);
+        assert!(c.model().is_ok());
+        std::fs::write(&path, r#"{"width": 640}"#).unwrap();
+        assert!(read(&path)
+            .unwrap_err()
+            .contains("foxglove.CameraCalibration"));
+    }
 }
