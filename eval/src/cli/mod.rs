@@ -1,6 +1,7 @@
 //! One module per subcommand; each exposes `XArgs` (clap) and `run`.
 
 pub mod detect;
+pub mod detect_bag;
 pub mod evaluate;
 pub mod gate;
 pub mod generate;
