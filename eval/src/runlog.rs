@@ -121,7 +121,9 @@ pub(crate) fn annotations_at(
     json!({"circles": [], "points": points, "texts": texts})
 }
 
-fn to_map<T: Serialize>(value: &T) -> BTreeMap<String, String> {
+/// A value's fields as MCAP metadata: strings as they are, anything else as
+/// JSON text.
+pub(crate) fn to_map<T: Serialize>(value: &T) -> BTreeMap<String, String> {
     let v = serde_json::to_value(value).unwrap_or_default();
     v.as_object()
         .map(|o| {

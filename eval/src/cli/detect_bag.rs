@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use anyhow::{anyhow, bail, Context, Result};
+use anyhow::{anyhow, bail, Result};
 use coppertag::DetectorConfig;
 use coppertag_eval::atomic::write_atomic;
 use coppertag_eval::ros2::camera::Calibration;
@@ -52,14 +52,7 @@ pub fn run(args: &DetectArgs, input: &Path, config: DetectorConfig) -> Result<()
     }
     let bar = super::progress::bar(plan.frames, &plan.topic.name, args.quiet);
     let work = || detect::run(&opts, &plan, |done| bar.set_position(done as u64));
-    let outcome = match args.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
-            .build()
-            .context("cannot start worker threads")?
-            .install(work),
-        None => work(),
-    }?;
+    let outcome = super::with_threads(args.threads, work)??;
     bar.finish_and_clear();
     write_atomic(output, &outcome.mcap)?;
     let fps = outcome.frames as f64 / outcome.wall_s.max(1e-9);

@@ -130,15 +130,8 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             bar.set_position(done as u64)
         })
     };
-    let report = match args.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
-            .build()
-            .context("cannot start worker threads")?
-            .install(work),
-        None => work(),
-    }
-    .with_context(|| format!("cannot render {}", args.spec.display()))?;
+    let report = super::with_threads(args.threads, work)?
+        .with_context(|| format!("cannot render {}", args.spec.display()))?;
     bar.finish_and_clear();
     if args.format == Format::Ros2 {
         use coppertag_eval::ros2::dataset_bag;

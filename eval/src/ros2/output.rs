@@ -193,23 +193,9 @@ impl BagOutput {
             .profile("")
             .library(concat!("coppertag-eval ", env!("CARGO_PKG_VERSION")))
             .create(Cursor::new(Vec::new()))?;
-        let meta = serde_json::to_value(facts).unwrap_or_default();
-        let metadata = meta
-            .as_object()
-            .map(|o| {
-                o.iter()
-                    .map(|(k, v)| {
-                        (
-                            k.clone(),
-                            v.as_str().map_or_else(|| v.to_string(), str::to_string),
-                        )
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
         writer.write_metadata(&Metadata {
             name: "coppertag.detect".into(),
-            metadata,
+            metadata: crate::runlog::to_map(facts),
         })?;
         let none = BTreeMap::new();
         let channel = |w: &mut mcap::Writer<_>, name: &str, schema: Value, topic: &str| {
