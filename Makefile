@@ -26,7 +26,7 @@ gate-build:
 	$(CARGO) build --profile ci --locked --bin coppertag
 
 # Python virtual environment for the peer detectors (AprilTag 3, ArUco 3,
-# STag) and the mcap reader, pinned in eval/peers/requirements.txt.
+# STag, fractal markers) and the mcap reader, pinned in eval/peers/requirements.txt.
 # Also maturin and pytest for the Python package (detector/python/requirements.txt).
 venv: $(VENV)/.installed
 $(VENV)/.installed: eval/peers/requirements.txt detector/python/requirements.txt
@@ -69,7 +69,7 @@ test: venv lint
 	$(MAKE) gate
 
 # The regression gate: the QUICK sets (a tenth of every sweep) through all
-# four detectors, then our speed against each peer's on the same frames
+# five detectors, then our speed against each peer's on the same frames
 # (interleaved, with a noise band), compared with the committed baseline.
 # Detection, wrong ids, false positives, duplicates and corner error are
 # exact checks; speed fails only when its whole noise band is out of bounds.
