@@ -258,7 +258,10 @@ rotation = [0.0, 0.0, 0.0]
         .render(&mut Rasterizer::new())
         .unwrap();
     let m = &r.markers[0];
-    assert_eq!((m.marker, m.family.as_str(), m.id), ("fractal", "fractal_5l_6", 0));
+    assert_eq!(
+        (m.marker, m.family.as_str(), m.id),
+        ("fractal", "fractal_5l_6", 0)
+    );
     // The outer square is 0.08 m at 0.15 m: 746.7 px; level 4 (the
     // smallest) 746.7 * 8 / 312 = 19 px, its border cells 2.4 px wide.
     assert!((m.side_px - 746.7).abs() < 0.5, "{}", m.side_px);

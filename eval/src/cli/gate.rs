@@ -155,7 +155,11 @@ pub fn run(args: &GateArgs) -> Result<bool> {
         write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
         eprintln!(
             "wrote {n} entries of {system}{} into baseline {}",
-            if speed.is_some() { " and its speed ratio" } else { "" },
+            if speed.is_some() {
+                " and its speed ratio"
+            } else {
+                ""
+            },
             args.baseline.display()
         );
         return Ok(true);
