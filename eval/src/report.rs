@@ -14,9 +14,10 @@ use crate::metrics::Summary;
 use crate::plot::{line_chart, Chart, Series};
 use crate::wild_summary::WildSummary;
 
-/// Marker systems in the paper's table order, with the fractal markers
-/// (not in the paper: the occlusion-designed peer) before CopperTag.
-pub const SYSTEMS: [&str; 5] = ["aruco3", "apriltag3", "stag", "fractal", "coppertag"];
+/// Marker systems in the paper's table order, then the fractal markers
+/// (not in the paper: the occlusion-designed peer), last so that the
+/// paper's four keep their colours in the figures.
+pub const SYSTEMS: [&str; 5] = ["aruco3", "apriltag3", "stag", "coppertag", "fractal"];
 
 /// The four simulation sweeps.
 pub const SWEEPS: [&str; 4] = ["distance-z", "rotated-x", "rotated-y", "rotated-z"];
