@@ -23,22 +23,26 @@ corners are found when the outer level is hidden (below).
 How the corners are obtained. The marker square is the outer level's black
 square (level 0), the square the synth truth gives.
 - Every detected level 0 is reported with its four corners as the library
-  gives them (sub-pixel refined), ``estimated`` all false. (A frame may show
-  several copies of the one marker, as the wild set's 1-3 markers per frame
-  do; each outer square is one detection.)
-- Otherwise the outer corners are extrapolated: a homography is fitted from
+  gives them (sub-pixel refined), ``estimated`` all false.
+- When level 0 is hidden, the outer corners are extrapolated: a homography is fitted from
   the matched marker-plane points (``points_3d``, normalised [-1, 1], y up:
   every detected level's corners and the inner bit-cell corners the library
   matched) to their image points (``points_2d``) with OpenCV's
   ``findHomography`` (RANSAC, ``RANSAC_REPROJ_PX`` threshold, so a stray
   match cannot bend it), and the outer square's corners (+-1, +-1) are mapped
-  through it; ``estimated`` all true. Fewer than ``MIN_POINTS`` matches, or
-  a degenerate fit, gives no detection. With several copies in the frame
-  and none of their outer squares seen, the RANSAC fit keeps the copy with
-  the most matched points: one detection, the others are missed. Inner
-  levels of a copy whose outer square is hidden are dropped when another
-  copy's outer square is seen (a limit of this adapter: the library's
-  points carry no marker instance).
+  through it; ``estimated`` all true.
+- A frame may show several copies of the one marker (the wild set has 1-3
+  markers per frame), and the library's points say not which copy they
+  belong to. So the detected levels are grouped into copies first: each
+  inner level implies an outer square (its four corners through the level's
+  place in the marker, from the library's level table); levels whose
+  implied squares share a centre (within SAME_COPY_FRACTION of the side)
+  are one copy, and a copy with an observed level 0 is that detection. For
+  each other copy the homography above is fitted to the matched points
+  inside its implied outer square (grown by REGION_GROWTH); with fewer than
+  MIN_POINTS of them (the library matches points for one copy only, so
+  other copies often have none beyond their levels' corners), the outer
+  square implied by the copy's largest level is reported (estimated).
 So corner error and pose error compare like with like: always the outer
 square, observed or extrapolated, as for CopperTag's estimated corners.
 
@@ -61,6 +65,7 @@ import protocol  # first: pins thread counts before numpy/cv2 load
 import cv2
 import nanofractal
 import numpy as np
+from nanofractal import _nanofractal as nf_native
 
 NAME = "fractal"
 DIST = "nanofractal"
@@ -80,6 +85,36 @@ MIN_POINTS = 6
 # RANSAC inlier threshold of the homography fit, pixels: matched points are
 # sub-pixel refined corners, so a point off by more is a mismatch.
 RANSAC_REPROJ_PX = 2.0
+# Two detected levels belong to the same copy of the marker when the outer
+# squares they imply have centres closer than this fraction of the side
+# (copies cannot overlap, so any fraction well below 1 separates them).
+SAME_COPY_FRACTION = 0.25
+# A copy's matched points are those inside the outer square implied by its
+# largest detected level, grown by this fraction about its centre (the
+# points on the outer square's own edges then count too).
+REGION_GROWTH = 0.05
+
+
+def level_halves() -> dict[int, float]:
+    """Half side of each level's square in the library's normalised marker plane (outer level = 1).
+
+    From the library's own level table (a private function of the pinned
+    nanofractal 0.6.1; eval/peers/export_fractal.py reads the same table).
+    """
+    return {int(i): float(np.abs(np.asarray(c)).max()) for i, c, _bits in nf_native._fractal_markers(CONFIG)}
+
+
+def implied_outer(corners: np.ndarray, half: float) -> np.ndarray:
+    """The outer square (TL, BL, BR, TR) implied by one level's four corners (library order TL, TR, BR, BL)."""
+    plane = np.array([[-half, half], [half, half], [half, -half], [-half, -half]], dtype=np.float32)
+    h = cv2.getPerspectiveTransform(plane, np.asarray(corners, dtype=np.float32))
+    return cv2.perspectiveTransform(OUTER_PLANE.reshape(-1, 1, 2), h).reshape(4, 2)
+
+
+def centre_and_side(quad: np.ndarray) -> tuple[np.ndarray, float]:
+    """Centre and mean side of a quadrilateral."""
+    side = float(np.mean(np.linalg.norm(quad - np.roll(quad, 1, axis=0), axis=1)))
+    return quad.mean(axis=0), side
 
 
 def outer_from_points(points_2d: np.ndarray, points_3d: np.ndarray) -> np.ndarray | None:
@@ -103,22 +138,43 @@ def make_detector() -> tuple[protocol.DetectFn, protocol.ConvertFn]:
     def detect(gray: np.ndarray) -> Any:
         return detector.detect(gray, with_inner_points=True)
 
+    halves = level_halves()
+
     def convert(raw: Any) -> list[protocol.Detection]:
         if len(raw) == 0:
             return []
-        observed = [
-            protocol.detection(FAMILY, MARKER_ID, np.asarray(corners)[TO_TL_BL_BR_TR])
-            for level, corners in raw
-            if level == OUTER_LEVEL
-        ]
-        if observed:
-            return observed
-        outer = outer_from_points(raw.points_2d, raw.points_3d)
-        if outer is None:
-            return []
-        record = protocol.detection(FAMILY, MARKER_ID, outer)
-        record["estimated"] = [True, True, True, True]
-        return [record]
+        found = []
+        # (outer quad TL, BL, BR, TR; observed?) per copy of the marker.
+        copies: list[tuple[np.ndarray, bool]] = []
+        for level, corners in sorted(raw, key=lambda lc: lc[0]):
+            corners = np.asarray(corners, dtype=np.float64)
+            if level == OUTER_LEVEL:
+                copies.append((corners[TO_TL_BL_BR_TR], True))
+                continue
+            region = implied_outer(corners, halves[level])
+            centre, side = centre_and_side(region)
+            if all(np.linalg.norm(centre - centre_and_side(q)[0]) > SAME_COPY_FRACTION * side for q, _ in copies):
+                copies.append((region, False))
+        points_2d = np.asarray(raw.points_2d, dtype=np.float64).reshape(-1, 2)
+        points_3d = np.asarray(raw.points_3d, dtype=np.float64).reshape(-1, 3)
+        for quad, observed in copies:
+            if observed:
+                found.append(protocol.detection(FAMILY, MARKER_ID, quad))
+                continue
+            centre, _side = centre_and_side(quad)
+            grown = (centre + (quad - centre) * (1.0 + REGION_GROWTH)).astype(np.float32)
+            inside = np.array(
+                [cv2.pointPolygonTest(grown, (float(x), float(y)), False) >= 0 for x, y in points_2d], dtype=bool
+            )
+            outer = outer_from_points(points_2d[inside], points_3d[inside])
+            if outer is None:
+                # Too few matched points of this copy: its largest level's
+                # own four corners say where the outer square is.
+                outer = quad
+            record = protocol.detection(FAMILY, MARKER_ID, outer)
+            record["estimated"] = [True, True, True, True]
+            found.append(record)
+        return found
 
     return detect, convert
 
