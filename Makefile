@@ -15,7 +15,7 @@ GATE_BIN := target/ci/coppertag
 QUICK   ?=
 QUICKDIR := build/quick
 
-.PHONY: all build gate-build test lint venv wheel python-test bench-python bench reproduce baseline baseline-wild gate quick-run speed gate-slowdown clean
+.PHONY: all build gate-build test lint venv wheel python-test bench-python bench reproduce baseline baseline-wild baseline-system gate quick-run speed gate-slowdown clean
 
 all: build
 
@@ -26,7 +26,7 @@ gate-build:
 	$(CARGO) build --profile ci --locked --bin coppertag
 
 # Python virtual environment for the peer detectors (AprilTag 3, ArUco 3,
-# STag) and the mcap reader, pinned in eval/peers/requirements.txt.
+# STag, fractal markers) and the mcap reader, pinned in eval/peers/requirements.txt.
 # Also maturin and pytest for the Python package (detector/python/requirements.txt).
 venv: $(VENV)/.installed
 $(VENV)/.installed: eval/peers/requirements.txt detector/python/requirements.txt
@@ -69,7 +69,7 @@ test: venv lint
 	$(MAKE) gate
 
 # The regression gate: the QUICK sets (a tenth of every sweep) through all
-# four detectors, then our speed against each peer's on the same frames
+# five detectors, then our speed against each peer's on the same frames
 # (interleaved, with a noise band), compared with the committed baseline.
 # Detection, wrong ids, false positives, duplicates and corner error are
 # exact checks; speed fails only when its whole noise band is out of bounds.
@@ -111,6 +111,17 @@ baseline: quick-run speed
 baseline-wild: quick-run
 	$(GATE_BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json \
 	  --wild $(QUICKDIR)/results/wild.json --update-wild
+
+# Add (or re-make) one system's entries and its speed ratio (make
+# baseline-system SYSTEM=fractal, after adding a peer), leaving every other
+# entry of the baseline as it is.
+SYSTEM ?=
+baseline-system: quick-run
+	test -n "$(SYSTEM)" || { echo "give SYSTEM=name"; exit 2; }
+	$(GATE_BIN) speed --work $(QUICKDIR) -o $(QUICKDIR)/results/speed-$(SYSTEM).json --quiet \
+	  --sweeps $(SPEED_SWEEPS) --only $(SYSTEM)
+	$(GATE_BIN) gate --baseline reports/baseline.json --summary $(QUICKDIR)/results/summary.json \
+	  --speed $(QUICKDIR)/results/speed-$(SYSTEM).json --update-system $(SYSTEM)
 
 # The paper's tables and figures into reports/ (QUICK=1: a tenth of every
 # sweep, into build/quick/reports instead).

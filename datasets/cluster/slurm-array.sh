@@ -22,8 +22,8 @@ for spec in datasets/wild/*.toml; do
   name=$(basename "$spec" .toml)
   marker=${name%%-*}
   case $marker in
-    coppertag|apriltag3|aruco3|stag) detectors=$marker ;;
-    *) detectors="coppertag apriltag3 aruco3 stag" ;;   # tag-free sets: every system
+    coppertag|apriltag3|aruco3|stag|fractal) detectors=$marker ;;
+    *) detectors="coppertag apriltag3 aruco3 stag fractal" ;;   # tag-free sets: every system
   esac
   ds="$WORK/datasets/$name-$K"
   "$BIN" synth "$spec" --shard "$K/$N" --force --quiet -o "$ds"

@@ -100,6 +100,30 @@ def stag_marker(code: list[int], geometry: dict, texels: int = 4096) -> MarkerFn
     return fn
 
 
+def fractal_marker(rows: list[str], occluded_corner: float = 0.0) -> MarkerFn:
+    """Fractal marker from its committed cell bitmap (row-major, '1' = black).
+
+    With ``occluded_corner`` > 0 a black patch covers the square
+    [-0.2, occluded_corner]^2 of the unit square (over the TL corner and its
+    quiet zone), so the outer square's outline is broken and only the inner
+    levels can be found.
+    """
+    grid = np.array([[ch == "1" for ch in row] for row in rows], dtype=bool)
+    cells = grid.shape[0]
+
+    def fn(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        inside = (u >= 0) & (u < 1) & (v >= 0) & (v < 1)
+        col = np.clip((u * cells).astype(np.int64), 0, cells - 1)
+        row = np.clip((v * cells).astype(np.int64), 0, cells - 1)
+        black = inside & grid[row, col]
+        if occluded_corner > 0:
+            patch = (u >= -0.2) & (u < occluded_corner) & (v >= -0.2) & (v < occluded_corner)
+            black |= patch
+        return black
+
+    return fn
+
+
 def render(size: tuple[int, int], marker: MarkerFn, corners: np.ndarray, rows_per_chunk: int = 16) -> np.ndarray:
     """Render one marker into a white ``size`` = (width, height) uint8 image.
 
@@ -174,6 +198,9 @@ class System:
     canvas: tuple[int, int]
     tolerance: float  # largest allowed distance of one corner from truth, px
     corrected: int | None  # expected "corrected" value on a clean render
+    # Extra cases with the outer square's TL corner covered (fractal only):
+    # (label, marker factory); the adapter must report estimated corners.
+    occluded: Callable[[int], MarkerFn] | None = None
 
 
 @dataclass
@@ -185,6 +212,7 @@ class Case:
     marker_id: int
     path: Path
     truth: np.ndarray
+    estimated: bool = False
 
 
 @dataclass
@@ -196,6 +224,7 @@ class Result:
     order_ok: int = 0
     errors: list[np.ndarray] = field(default_factory=list)
     max_err: float = 0.0
+    estimated_max_err: float = 0.0
     ms: list[float] = field(default_factory=list)
     failures: list[str] = field(default_factory=list)
 
@@ -205,6 +234,7 @@ def load_systems() -> list[System]:
     april = json.loads((CODEBOOKS / "tag36h11.json").read_text())
     mip = json.loads((CODEBOOKS / "aruco_mip_36h12.json").read_text())
     stag = json.loads((CODEBOOKS / "stag_hd21.json").read_text())
+    fractal = json.loads((CODEBOOKS / "fractal_5l_6.json").read_text())
 
     def ends(count: int) -> list[int]:
         return [0, count // 2, count - 1]
@@ -247,8 +277,32 @@ def load_systems() -> list[System]:
             tolerance=0.8,
             corrected=None,
         ),
+        System(
+            name="fractal",
+            adapter="fractal.py",
+            family="fractal_5l_6",
+            # One marker (id 0), placed at each of the three sub-pixel origins.
+            ids=[0, 0, 0],
+            side=312.0,
+            make=lambda _i: fractal_marker(fractal["rows"]),
+            canvas=(560, 580),
+            tolerance=FRACTAL_TOLERANCE_PX,
+            corrected=None,
+            occluded=lambda _i: fractal_marker(fractal["rows"], occluded_corner=FRACTAL_PATCH),
+        ),
     ]
 
+
+# Fractal corners: sub-pixel refined by the library (cornerSubPix); observed
+# mean 0.15 px, max 0.26 px on these renders. Extrapolated (outer square hidden,
+# corners through the homography of the inner levels' points): up to
+# FRACTAL_ESTIMATED_TOLERANCE_PX.
+FRACTAL_TOLERANCE_PX = 0.35
+FRACTAL_ESTIMATED_TOLERANCE_PX = 0.6
+# Far corner of the black patch over the TL corner in the occluded fractal
+# cases, unit-square coordinates: past the outer level's border (1/13 =
+# 0.077), short of level 1 (which starts at 0.308).
+FRACTAL_PATCH = 0.25
 
 WARPS = [
     np.array([[6.0, -4.0], [-5.0, 3.0], [4.0, 7.0], [-3.0, -6.0]]),
@@ -278,9 +332,17 @@ def build_cases(systems: list[System], out_dir: Path) -> list[Case]:
             warped = placed_corners((origin[0] + 0.3, origin[1] - 0.3), system.side, turns, WARPS[idx % len(WARPS)])
             variants.append((f"persp+rot{90 * turns}", warped))
             for label, truth in variants:
-                path = out_dir / f"{system.name}_{marker_id}_{label}.png"
+                path = out_dir / f"{system.name}_{marker_id}_{idx}_{label}.png"
                 cv2.imwrite(str(path), render(system.canvas, marker, truth))
                 cases.append(Case(system.name, label, marker_id, path, truth))
+            if system.occluded is not None:
+                hidden = system.occluded(marker_id)
+                for k in (0, turns % 4):
+                    truth = placed_corners(origin, system.side, k, WARPS[idx % len(WARPS)] if k else None)
+                    label = f"occluded-tl+rot{90 * k}"
+                    path = out_dir / f"{system.name}_{marker_id}_{idx}_{label}.png"
+                    cv2.imwrite(str(path), render(system.canvas, hidden, truth))
+                    cases.append(Case(system.name, label, marker_id, path, truth, estimated=True))
     return cases
 
 
@@ -350,7 +412,11 @@ def check_system(system: System, cases: list[Case], scratch: Path) -> Result:
         det = hits[0]
         result.found += 1
         got = np.array(det["corners"], dtype=np.float64)
-        if got.shape != (4, 2) or det["estimated"] != [False] * 4 or det["corrected"] != system.corrected:
+        if (
+            got.shape != (4, 2)
+            or det["estimated"] != [case.estimated] * 4
+            or det["corrected"] != system.corrected
+        ):
             result.failures.append(f"{tag}: malformed detection {det}")
             continue
         # Physical order: each reported corner must be nearest to its own truth corner.
@@ -360,13 +426,15 @@ def check_system(system: System, cases: list[Case], scratch: Path) -> Result:
             continue
         result.order_ok += 1
         err = got - case.truth
-        result.errors.append(err)
         worst = float(np.linalg.norm(err, axis=1).max())
-        result.max_err = max(result.max_err, worst)
-        if worst > system.tolerance:
-            result.failures.append(
-                f"{tag}: corner error {worst:.3f} px > {system.tolerance}: {np.round(err, 3).tolist()}"
-            )
+        tolerance = FRACTAL_ESTIMATED_TOLERANCE_PX if case.estimated else system.tolerance
+        if case.estimated:
+            result.estimated_max_err = max(result.estimated_max_err, worst)
+        else:
+            result.errors.append(err)
+            result.max_err = max(result.max_err, worst)
+        if worst > tolerance:
+            result.failures.append(f"{tag}: corner error {worst:.3f} px > {tolerance}: {np.round(err, 3).tolist()}")
     if result.errors:
         mean = np.concatenate(result.errors).mean(axis=0)
         if np.abs(mean).max() > MEAN_TOLERANCE_PX:
@@ -397,7 +465,9 @@ def summarise(system: System, result: Result, version: str) -> str:
     return (
         f"{system.name:<10} {version:<42} {result.found:>2}/{result.cases:<2} {result.order_ok:>2}/{result.cases:<2}"
         f" {mean[0]:+7.3f} {mean[1]:+7.3f} {mean_abs:7.3f} {result.max_err:7.3f} {system.tolerance:5.2f}"
-        f" {ms:7.2f}  {status}"
+        f" {ms:7.2f}  "
+        + (f"(estimated corners: max|e| {result.estimated_max_err:.3f}) " if system.occluded else "")
+        + status
     )
 
 

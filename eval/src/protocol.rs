@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct DetectionRecord {
     /// Family or codebook name (`ct14`, `tag36h11`, `aruco_mip_36h12`,
-    /// `stag_hd21`).
+    /// `stag_hd21`, `fractal_5l_6`).
     pub family: String,
     /// Marker id.
     pub id: u64,

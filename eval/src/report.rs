@@ -14,8 +14,10 @@ use crate::metrics::Summary;
 use crate::plot::{line_chart, Chart, Series};
 use crate::wild_summary::WildSummary;
 
-/// Marker systems in the paper's table order.
-pub const SYSTEMS: [&str; 4] = ["aruco3", "apriltag3", "stag", "coppertag"];
+/// Marker systems in the paper's table order, then the fractal markers
+/// (not in the paper: the occlusion-designed peer), last so that the
+/// paper's four keep their colours in the figures.
+pub const SYSTEMS: [&str; 5] = ["aruco3", "apriltag3", "stag", "coppertag", "fractal"];
 
 /// The four simulation sweeps.
 pub const SWEEPS: [&str; 4] = ["distance-z", "rotated-x", "rotated-y", "rotated-z"];
@@ -25,6 +27,7 @@ fn display(system: &str) -> &'static str {
         "aruco3" => "ArUco3",
         "apriltag3" => "AprilTag3",
         "stag" => "STag",
+        "fractal" => "Fractal",
         "coppertag" => "CopperTag",
         _ => "other",
     }
@@ -42,21 +45,32 @@ fn paper_table1(system: &str) -> Option<(&'static str, &'static str, &'static st
 }
 
 /// Table II of the paper: which of the 20 occlusion images (5%..20% x
-/// patterns 1..5) each system detected.
-fn paper_table2(system: &str) -> [bool; 20] {
+/// patterns 1..5) each system detected; `None` for a system the paper did
+/// not test (the fractal markers).
+fn paper_table2(system: &str) -> Option<[bool; 20]> {
     let mut row = [false; 20];
     let set: &[usize] = match system {
+        "aruco3" => &[],
         "apriltag3" => &[0, 3],
         "stag" => &[0, 2, 3, 5, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19],
         "coppertag" => &[
             0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19,
         ],
-        _ => &[],
+        _ => return None,
     };
     for &i in set {
         row[i] = true;
     }
-    row
+    Some(row)
+}
+
+/// A paper figure in brackets, or `(-)` where the paper has none.
+fn paper_mark(paper: Option<bool>) -> &'static str {
+    match paper {
+        Some(true) => "Y",
+        Some(false) => ".",
+        None => "-",
+    }
 }
 
 fn sweep_of(s: &Summary) -> &str {
@@ -115,7 +129,7 @@ fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String)
         } else {
             0.0
         };
-        let p = paper_table1(sys).unwrap_or(("", "", "", ""));
+        let p = paper_table1(sys).unwrap_or(("-", "-", "-", "-"));
         let _ = writeln!(
             out,
             "| {} | {} ({}) | {:.2} ({}) | {:.2} | {:.2} ({}) | {:.1} | {:.2} ({}) | {:.0} |",
@@ -153,7 +167,7 @@ fn table2(summaries: &[Summary], out: &mut String, csv: &mut String) {
         "\n## Table II: the 20 occlusion images\n\n\
          Patterns 1-5 at each coverage level are triangle, same-side, symmetry, diagonal and inner \
          (`datasets/occlusions/paper/`). Each cell: ours, then the paper's in brackets \
-         (Y found, . missed).\n\n",
+         (Y found, . missed, - not in the paper: the fractal markers).\n\n",
     );
     out.push_str("| marker | 5%: 1 2 3 4 5 | 10%: 1 2 3 4 5 | 15%: 1 2 3 4 5 | 20%: 1 2 3 4 5 | found (paper) |\n|---|---|---|---|---|---|\n");
     csv.push_str("marker,pattern,found,paper_found\n");
@@ -172,30 +186,34 @@ fn table2(summaries: &[Summary], out: &mut String, csv: &mut String) {
         for (i, img) in images.iter().enumerate().take(20) {
             let found = img.found > 0;
             n_found += usize::from(found);
+            let was = paper.map(|p| p[i]);
             let _ = write!(
                 cells[i / 5],
                 "{}({}) ",
                 if found { "Y" } else { "." },
-                if paper[i] { "Y" } else { "." }
+                paper_mark(was)
             );
             let _ = writeln!(
                 csv,
                 "{sys},{},{},{}",
                 img.occlusion_pattern,
                 u8::from(found),
-                u8::from(paper[i])
+                was.map_or(String::new(), |w| u8::from(w).to_string())
             );
         }
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {n_found}/{} ({}/20) |",
+            "| {} | {} | {} | {} | {} | {n_found}/{} ({}) |",
             display(sys),
             cells[0].trim(),
             cells[1].trim(),
             cells[2].trim(),
             cells[3].trim(),
             images.len().min(20),
-            paper.iter().filter(|&&p| p).count()
+            paper.map_or("-".into(), |p| format!(
+                "{}/20",
+                p.iter().filter(|&&w| w).count()
+            ))
         );
     }
 }

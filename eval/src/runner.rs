@@ -24,7 +24,7 @@ use crate::truth::Dataset;
 const IMAGE_TIMEOUT: Duration = Duration::from_secs(120);
 
 /// The detectors `coppertag run` knows by name.
-pub const KNOWN: &[&str] = &["coppertag", "apriltag3", "aruco3", "stag"];
+pub const KNOWN: &[&str] = &["coppertag", "apriltag3", "aruco3", "stag", "fractal"];
 
 /// How to reach a detector.
 #[derive(Debug, Clone, PartialEq)]
@@ -46,7 +46,7 @@ impl DetectorSpec {
     pub fn by_name(name: &str, python: &Path, peers_dir: &Path) -> Result<Self> {
         match name {
             "coppertag" => Ok(Self::CopperTag(coppertag::detect::DetectorConfig::default())),
-            "apriltag3" | "aruco3" | "stag" => Ok(Self::Subprocess {
+            "apriltag3" | "aruco3" | "stag" | "fractal" => Ok(Self::Subprocess {
                 name: name.into(),
                 command: vec![
                     python.display().to_string(),

@@ -19,7 +19,7 @@ pub struct TruthMarker {
     /// without the column read as 0).
     #[serde(default)]
     pub marker_index: usize,
-    /// Marker system: coppertag, apriltag3, aruco3, stag.
+    /// Marker system: coppertag, apriltag3, aruco3, stag, fractal.
     pub marker: String,
     /// Family or codebook name.
     pub family: String,

@@ -16,6 +16,7 @@ fn display(system: &str) -> String {
         "aruco3" => "ArUco3".into(),
         "apriltag3" => "AprilTag3".into(),
         "stag" => "STag".into(),
+        "fractal" => "Fractal".into(),
         "coppertag" => "CopperTag".into(),
         other => other.into(),
     }

@@ -139,7 +139,8 @@ pub struct WildSummary {
     pub factors: Vec<FactorCurve>,
 }
 
-/// Systems in report order: the paper's four first, then others by name.
+/// Systems in report order ([`SYSTEMS`]: the paper's four, then the
+/// fractal markers), then any others by name.
 fn system_order(runs: &[WildRun]) -> Vec<String> {
     let mut names: Vec<String> = runs.iter().map(|r| r.detector.clone()).collect();
     names.sort();

@@ -79,6 +79,7 @@ pub const TRUTH_COLUMNS: &[&str] = &[
     "occlusion_scenario",
     "occlusion_coverage",
     "occluder_fractions",
+    "level_corners",
 ];
 
 /// Version of the dataset layout, in `dataset.json`.
@@ -314,6 +315,16 @@ fn truth_rows(
             }
             None => row.extend([String::new(), String::new(), "0".to_string(), String::new()]),
         }
+        row.push(
+            m.levels
+                .iter()
+                .map(|(id, c)| {
+                    let xy: Vec<String> = c.iter().flatten().map(f64::to_string).collect();
+                    format!("{id}:{}", xy.join(" "))
+                })
+                .collect::<Vec<_>>()
+                .join(";"),
+        );
         debug_assert_eq!(row.len(), TRUTH_COLUMNS.len());
         csv.write_record(&row)?;
     }

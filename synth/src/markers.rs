@@ -13,6 +13,9 @@
 //! units are already marker units. Peer shapes are built here from the
 //! committed codebooks in `synth/data/peers/` (see the README there), with
 //! the same [`Element`] type: rectangles and discs, painted in order.
+//! The fractal marker is a committed bitmap (`fractal_5l_6.json`, drawn by
+//! nanofractal, see `eval/peers/export_fractal.py`): its marker square is
+//! the outer black square, which the bitmap spans exactly.
 
 use std::sync::OnceLock;
 
@@ -37,15 +40,19 @@ pub enum MarkerSystem {
     Aruco3,
     /// STag, library HD21 (`stag_hd21`).
     Stag,
+    /// Fractal marker (nanofractal), configuration FRACTAL_5L_6
+    /// (`fractal_5l_6`, one marker: id 0).
+    Fractal,
 }
 
 impl MarkerSystem {
     /// Every system, in the order used in reports.
-    pub const ALL: [MarkerSystem; 4] = [
+    pub const ALL: [MarkerSystem; 5] = [
         MarkerSystem::Coppertag,
         MarkerSystem::Apriltag3,
         MarkerSystem::Aruco3,
         MarkerSystem::Stag,
+        MarkerSystem::Fractal,
     ];
 
     /// The name used in specs and `truth.csv`.
@@ -56,6 +63,7 @@ impl MarkerSystem {
             MarkerSystem::Apriltag3 => "apriltag3",
             MarkerSystem::Aruco3 => "aruco3",
             MarkerSystem::Stag => "stag",
+            MarkerSystem::Fractal => "fractal",
         }
     }
 
@@ -67,6 +75,7 @@ impl MarkerSystem {
             MarkerSystem::Apriltag3 => "tag36h11",
             MarkerSystem::Aruco3 => "aruco_mip_36h12",
             MarkerSystem::Stag => "stag_hd21",
+            MarkerSystem::Fractal => "fractal_5l_6",
         }
     }
 
@@ -113,6 +122,47 @@ struct StagBook {
     nbits: usize,
     geometry: StagGeometry,
     codes: Vec<Vec<u8>>,
+}
+
+/// A fractal marker's level: one nested square marker.
+#[derive(Debug, Clone, Deserialize)]
+pub struct FractalLevel {
+    /// Level id as the detector reports it (0 = the outer square).
+    pub id: u32,
+    /// Side of the level's data grid in cells.
+    pub bits: u32,
+    /// The level's corners TL, BL, BR, TR in marker units.
+    pub corners: [[f64; 2]; 4],
+}
+
+#[derive(Deserialize)]
+struct FractalBook {
+    name: String,
+    cells: usize,
+    quiet_zone: f64,
+    levels: Vec<FractalLevel>,
+    /// Row-major, row 0 at the top, `'1'` = black.
+    rows: Vec<String>,
+}
+
+fn fractal_book() -> &'static FractalBook {
+    static FRACTAL: OnceLock<FractalBook> = OnceLock::new();
+    FRACTAL.get_or_init(|| {
+        let book: FractalBook =
+            serde_json::from_str(include_str!("../data/peers/fractal_5l_6.json"))
+                .expect("committed fractal marker parses");
+        assert_eq!(book.rows.len(), book.cells);
+        assert!(book.rows.iter().all(|r| r.len() == book.cells));
+        assert!((book.quiet_zone - 0.125).abs() < 1e-12);
+        assert_eq!(book.levels.first().map(|l| l.id), Some(0));
+        book
+    })
+}
+
+/// The fractal marker's levels (outer square first), marker units.
+#[must_use]
+pub fn fractal_levels() -> &'static [FractalLevel] {
+    &fractal_book().levels
 }
 
 fn square_book(system: MarkerSystem) -> &'static SquareBook {
@@ -214,6 +264,16 @@ impl MarkerModel {
                 let book = stag_book();
                 stag_elements(&book.geometry, code_in(&book.name, &book.codes)?)
             }
+            MarkerSystem::Fractal => {
+                let book = fractal_book();
+                if family != book.name {
+                    return Err(bad_family());
+                }
+                if id != 0 {
+                    return Err(bad_id(1));
+                }
+                fractal_elements(book)
+            }
         };
         Ok(Self {
             system,
@@ -241,6 +301,7 @@ impl MarkerModel {
                 let book = stag_book();
                 (&book.name, book.codes.len())
             }
+            MarkerSystem::Fractal => (&fractal_book().name, 1),
         };
         if family != name.as_str() {
             return Err(SynthError::InvalidParameter {
@@ -284,6 +345,52 @@ fn square_marker_elements(book: &SquareBook, code: &[u8]) -> Vec<Element> {
         el(Part::Background, Paint::White, rect(half)),
         el(Part::Frame, Paint::Black, rect(0.5)),
         el(Part::Cells, Paint::White, Shape::Rects(white)),
+    ]
+}
+
+/// Fractal marker: white quiet zone, black square, then the white cells
+/// of the bitmap merged into as few rectangles as a greedy sweep finds
+/// (runs along a row, extended down while the rows below repeat the run):
+/// some 97 000 cells become a few thousand rectangles.
+fn fractal_elements(book: &FractalBook) -> Vec<Element> {
+    let n = book.cells;
+    let unit = 1.0 / n as f64;
+    let mut white: Vec<Vec<bool>> = book
+        .rows
+        .iter()
+        .map(|r| r.bytes().map(|b| b == b'0').collect())
+        .collect();
+    let mut rects = Vec::new();
+    for r in 0..n {
+        let mut c = 0;
+        while c < n {
+            if !white[r][c] {
+                c += 1;
+                continue;
+            }
+            let c0 = c;
+            while c < n && white[r][c] {
+                c += 1;
+            }
+            let mut r1 = r + 1;
+            while r1 < n && (c0..c).all(|k| white[r1][k]) {
+                r1 += 1;
+            }
+            for row in white.iter_mut().take(r1).skip(r) {
+                row[c0..c].iter_mut().for_each(|w| *w = false);
+            }
+            rects.push([
+                -0.5 + c0 as f64 * unit,
+                -0.5 + r as f64 * unit,
+                -0.5 + c as f64 * unit,
+                -0.5 + r1 as f64 * unit,
+            ]);
+        }
+    }
+    vec![
+        el(Part::Background, Paint::White, rect(0.5 + book.quiet_zone)),
+        el(Part::Frame, Paint::Black, rect(0.5)),
+        el(Part::Cells, Paint::White, Shape::Rects(rects)),
     ]
 }
 
@@ -355,6 +462,32 @@ mod tests {
         assert!(MarkerModel::new(MarkerSystem::Stag, Some("tag36h11"), 0).is_err());
         assert!(MarkerModel::new(MarkerSystem::Stag, None, 11).is_ok());
         assert!(MarkerModel::new(MarkerSystem::Stag, None, 12).is_err());
+    }
+
+    #[test]
+    fn fractal_marker_is_its_bitmap() {
+        let m = MarkerModel::new(MarkerSystem::Fractal, None, 0).unwrap();
+        assert!(MarkerModel::new(MarkerSystem::Fractal, None, 1).is_err());
+        assert!((m.metres_per_unit(0.1) - 0.08).abs() < 1e-15);
+        let book = fractal_book();
+        let Shape::Rects(white) = &m.elements[2].shape else {
+            panic!()
+        };
+        // Every cell centre is white exactly when some rectangle holds it.
+        let n = book.cells;
+        for (r, row) in book.rows.iter().enumerate() {
+            for (c, b) in row.bytes().enumerate() {
+                let x = -0.5 + (c as f64 + 0.5) / n as f64;
+                let y = -0.5 + (r as f64 + 0.5) / n as f64;
+                let inside = white
+                    .iter()
+                    .any(|q| q[0] < x && x < q[2] && q[1] < y && y < q[3]);
+                assert_eq!(inside, b == b'0', "cell ({r}, {c})");
+            }
+        }
+        assert!(white.len() < 5000, "{} rectangles", white.len());
+        assert_eq!(fractal_levels().len(), 5);
+        assert_eq!(fractal_levels()[0].corners, CORNERS);
     }
 
     #[test]

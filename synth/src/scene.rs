@@ -22,7 +22,7 @@ use crate::coverage::{Canvas, Rasterizer};
 use crate::cutout::{Cutout, DRAW_SUPERSAMPLE};
 use crate::effects::{self, Effects, Lighting, Sensor};
 use crate::error::{Result, SynthError};
-use crate::markers::{MarkerModel, CORNERS};
+use crate::markers::{fractal_levels, MarkerModel, MarkerSystem, CORNERS};
 use crate::occlusion::{Occlusion, Scenario, UNIT_CORNERS};
 use crate::pose::Pose;
 use crate::raster::{element_polygons, map_polygon, TagToPixel};
@@ -192,7 +192,7 @@ impl TagToPixel for MarkerView<'_> {
 pub struct MarkerTruth {
     /// Index of the marker in the spec.
     pub index: usize,
-    /// System name (`coppertag`, `apriltag3`, `aruco3`, `stag`).
+    /// System name (`coppertag`, `apriltag3`, `aruco3`, `stag`, `fractal`).
     pub marker: &'static str,
     /// Family or dictionary.
     pub family: String,
@@ -218,6 +218,10 @@ pub struct MarkerTruth {
     pub side_px: f64,
     /// Occlusion applied, if any.
     pub occlusion: Option<OcclusionTruth>,
+    /// A fractal marker's inner levels (the outer one is the marker
+    /// square): level id and corners TL, BL, BR, TR in pixel-centre
+    /// coordinates. Empty for the other systems.
+    pub levels: Vec<(u32, [[f64; 2]; 4])>,
 }
 
 /// Ground truth of an occlusion on one marker.
@@ -430,14 +434,27 @@ impl Scene {
         occlusion: Option<OcclusionTruth>,
     ) -> Result<MarkerTruth> {
         let m = &self.markers[mi];
-        let mut corners = [[0.0; 2]; 4];
-        for (c, &p) in corners.iter_mut().zip(CORNERS.iter()) {
-            *c = view.project(p).ok_or_else(|| {
+        let project = |p: [f64; 2]| {
+            view.project(p).ok_or_else(|| {
                 SynthError::Scene(format!(
                     "image {}: a corner of marker {mi} cannot be projected",
                     self.index
                 ))
-            })?;
+            })
+        };
+        let mut corners = [[0.0; 2]; 4];
+        for (c, &p) in corners.iter_mut().zip(CORNERS.iter()) {
+            *c = project(p)?;
+        }
+        let mut levels = Vec::new();
+        if m.model.system == MarkerSystem::Fractal {
+            for level in fractal_levels().iter().filter(|l| l.id != 0) {
+                let mut c = [[0.0; 2]; 4];
+                for (out, &p) in c.iter_mut().zip(level.corners.iter()) {
+                    *out = project(p)?;
+                }
+                levels.push((level.id, c));
+            }
         }
         let corner_in_image = corners.map(|c| self.rendering.camera.contains(c));
         let hidden = m
@@ -466,6 +483,7 @@ impl Scene {
             tvec: m.pose.tvec(),
             side_px,
             occlusion,
+            levels,
         })
     }
 }

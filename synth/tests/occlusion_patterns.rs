@@ -154,13 +154,13 @@ fn exact_coverage_matches_rendered_area() {
 }
 
 /// Occluders are laid on the marker square of every system: the occlusion
-/// specs of the four systems name the same 20 patterns, and the truth
+/// specs of the five systems name the same 20 patterns, and the truth
 /// reports the same coverage for each.
 #[test]
 fn every_system_gets_the_same_patterns() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/paper");
     let mut names: Option<Vec<String>> = None;
-    for sys in ["coppertag", "apriltag3", "aruco3", "stag"] {
+    for sys in ["coppertag", "apriltag3", "aruco3", "stag", "fractal"] {
         let spec = DatasetSpec::load(&dir.join(format!("{sys}-occlusion.toml"))).unwrap();
         let n: Vec<String> = spec
             .occlusion

@@ -76,7 +76,10 @@ fn every_paper_spec_has_the_papers_count_and_stays_in_frame() {
             }
         }
     }
-    assert_eq!(checked, 4 * (251 + 141 + 141 + 361 + 20));
+    assert_eq!(
+        checked,
+        MarkerSystem::ALL.len() * (251 + 141 + 141 + 361 + 20)
+    );
 }
 
 #[test]

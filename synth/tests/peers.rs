@@ -151,11 +151,13 @@ fn peer_detectors_find_what_synth_renders() {
     let tmp = tempfile::tempdir().unwrap();
     // (system, adapter, id, corner tolerance in px: the adapters' own
     // accuracy measured by eval/peers/selftest.py: 0.5 AprilTag, 1.25 ArUco
-    // 3 without refinement, 0.8 STag).
+    // 3 without refinement, 0.8 STag, 0.35 fractal markers (observed outer
+    // square; these renders add noise and lens distortion, hence 0.5)).
     for (system, adapter, id, tol) in [
         ("apriltag3", "apriltag3.py", 293, 0.5),
         ("aruco3", "aruco3.py", 125, 1.25),
         ("stag", "stag.py", 6, 0.8),
+        ("fractal", "fractal.py", 0, 0.5),
     ] {
         let rendered = render_all(system, None, id, tmp.path());
         let paths: Vec<PathBuf> = rendered.iter().map(|r| r.0.clone()).collect();
@@ -174,6 +176,12 @@ fn peer_detectors_find_what_synth_renders() {
             let d = &dets[0];
             assert_eq!(d["family"], truth.family.as_str());
             assert_eq!(d["id"], id, "{}", path.display());
+            assert_eq!(
+                d["estimated"],
+                serde_json::json!([false, false, false, false]),
+                "{adapter} {}: nothing is hidden",
+                path.display()
+            );
             for (k, t) in truth.corners.iter().enumerate() {
                 let c = &d["corners"][k];
                 let (x, y) = (c[0].as_f64().unwrap(), c[1].as_f64().unwrap());
@@ -208,6 +216,84 @@ fn coppertag_renders_decode_from_their_true_corners() {
                 "truth corners are already in TL, BL, BR, TR order"
             );
             assert_eq!(r.corrected, 0, "{}", path.display());
+        }
+    }
+}
+
+/// Mean grey of the 3 x 3 pixels around `p` (pixel-centre coordinates).
+fn grey_around(img: &image::GrayImage, p: [f64; 2]) -> f64 {
+    let (cx, cy) = (p[0].round() as i64, p[1].round() as i64);
+    let mut sum = 0.0;
+    for dy in -1..=1 {
+        for dx in -1..=1 {
+            sum += f64::from(img.get_pixel((cx + dx) as u32, (cy + dy) as u32).0[0]);
+        }
+    }
+    sum / 9.0
+}
+
+/// A face-on fractal render: its truth corners sit on the outer black
+/// square (dark just inside each corner, the white quiet zone just
+/// outside), and every inner level's truth corners sit on that level's
+/// black border (dark just inside).
+#[test]
+fn fractal_truth_corners_sit_on_the_rendered_squares() {
+    let text = r#"
+seed = 1
+[camera]
+width = 1280
+height = 960
+fx = 1400.0
+[[markers]]
+system = "fractal"
+id = 0
+size_m = 0.1
+translation = [0.0, 0.0, 0.15]
+rotation = [0.0, 0.0, 0.0]
+"#;
+    let spec = DatasetSpec::from_toml(text, Path::new("fractal.toml")).unwrap();
+    let r = spec
+        .scene(0)
+        .unwrap()
+        .render(&mut Rasterizer::new())
+        .unwrap();
+    let m = &r.markers[0];
+    assert_eq!(
+        (m.marker, m.family.as_str(), m.id),
+        ("fractal", "fractal_5l_6", 0)
+    );
+    // The outer square is 0.08 m at 0.15 m: 746.7 px; level 4 (the
+    // smallest) 746.7 * 8 / 312 = 19 px, its border cells 2.4 px wide.
+    assert!((m.side_px - 746.7).abs() < 0.5, "{}", m.side_px);
+    assert_eq!(m.levels.len(), 4);
+    let centre = [
+        m.corners.iter().map(|c| c[0]).sum::<f64>() / 4.0,
+        m.corners.iter().map(|c| c[1]).sum::<f64>() / 4.0,
+    ];
+    // A point `d` px from corner `c` along the diagonal, towards (d > 0) or
+    // away from (d < 0) the centre.
+    let step = |c: [f64; 2], d: f64| {
+        let (vx, vy) = (centre[0] - c[0], centre[1] - c[1]);
+        let n = vx.hypot(vy);
+        [c[0] + d * vx / n, c[1] + d * vy / n]
+    };
+    let img = &r.image;
+    for (k, &c) in m.corners.iter().enumerate() {
+        let inside = grey_around(img, step(c, 4.0));
+        let outside = grey_around(img, step(c, -4.0));
+        assert!(inside < 60.0, "outer corner {k}: {inside} just inside");
+        assert!(outside > 180.0, "outer corner {k}: {outside} just outside");
+    }
+    for (id, corners) in &m.levels {
+        // Half a border cell inside the level's corner: black.
+        let cells = [0.0, 15.0, 14.0, 12.0, 8.0][*id as usize];
+        let side = (corners[0][0] - corners[2][0]).hypot(corners[0][1] - corners[2][1])
+            / std::f64::consts::SQRT_2;
+        let d = 0.5 * side / cells * std::f64::consts::SQRT_2;
+        for (k, &c) in corners.iter().enumerate() {
+            let p = step(c, d);
+            let v = img.get_pixel(p[0].round() as u32, p[1].round() as u32).0[0];
+            assert!(v < 80, "level {id} corner {k}: grey {v} half a cell inside");
         }
     }
 }

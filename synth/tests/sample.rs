@@ -137,6 +137,7 @@ fn every_system_sees_the_same_scenes() {
         ("coppertag", "ct14"),
         ("apriltag3", "tag36h11"),
         ("stag", "stag_hd21"),
+        ("fractal", "fractal_5l_6"),
     ] {
         let spec = DatasetSpec::load(&write(
             tmp.path(),

@@ -26,7 +26,8 @@ use super::evaluate::{read_summaries, read_wild};
     baseline ratio times 1 + --time-ratio, or, for CopperTag's wild-slice entry (from --wild), the\n\
     detection rate falls or rough detections, wrong ids or false positives (per megapixel on tag-free\n\
     frames) grow. --update-wild adds or replaces only the wild entries and leaves the rest of the\n\
-    baseline as it is. Exit 2: unreadable input.")]
+    baseline as it is; --update-system NAME does the same for one system's entries (and, with --speed,\n\
+    its speed ratio), e.g. a newly added peer. Exit 2: unreadable input.")]
 pub struct GateArgs {
     /// Committed baseline (JSON).
     #[arg(long)]
@@ -59,8 +60,14 @@ pub struct GateArgs {
     pub wild: Option<PathBuf>,
 
     /// Write the summary as the new baseline instead of checking.
-    #[arg(long, conflicts_with = "update_wild")]
+    #[arg(long, conflicts_with_all = ["update_wild", "update_system"])]
     pub update: bool,
+
+    /// Add (or replace) only this system's entries (detector name, e.g.
+    /// `fractal`) from --summary, and its speed ratio from --speed when
+    /// given, keeping every other entry as it is.
+    #[arg(long, value_name = "NAME", conflicts_with = "update_wild")]
+    pub update_system: Option<String>,
 
     /// Add (or replace) only the baseline's wild entries, from --wild,
     /// keeping every other entry as it is.
@@ -117,6 +124,45 @@ pub fn run(args: &GateArgs) -> Result<bool> {
                 s.options.slowdown
             );
         }
+    }
+    if let Some(system) = &args.update_system {
+        if speed.as_ref().is_some_and(|s| s.options.slowdown != 1.0) {
+            anyhow::bail!("refusing to take a speed ratio from a deliberately slowed run");
+        }
+        let mut b = read_baseline(&args.baseline)?;
+        let fresh = baseline_of(&summaries, speed.as_ref(), None, "");
+        let prefix = format!("{system}/");
+        let entries: Vec<_> = fresh
+            .entries
+            .into_iter()
+            .filter(|(k, _)| k.starts_with(&prefix))
+            .collect();
+        if entries.is_empty() {
+            anyhow::bail!(
+                "{}: no entries of system '{system}'",
+                args.summary.display()
+            );
+        }
+        let n = entries.len();
+        b.entries.retain(|k, _| !k.starts_with(&prefix));
+        b.entries.extend(entries);
+        if speed.is_some() {
+            let Some(ratio) = fresh.speed_ratio_vs.get(system) else {
+                anyhow::bail!("the speed file has no ratio against '{system}'");
+            };
+            b.speed_ratio_vs.insert(system.clone(), *ratio);
+        }
+        write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
+        eprintln!(
+            "wrote {n} entries of {system}{} into baseline {}",
+            if speed.is_some() {
+                " and its speed ratio"
+            } else {
+                ""
+            },
+            args.baseline.display()
+        );
+        return Ok(true);
     }
     if args.update {
         let b = baseline_of(

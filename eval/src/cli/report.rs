@@ -60,14 +60,18 @@ pub fn preamble(summaries: &[Summary], made_by: &str) -> String {
            not by Unity3D; the paper's sensor is not stated. Distance steps are 1 cm (251 images from 0.30 m to 2.80 m), \
            as the paper's image count implies.\n\
          - The peers run through their official Python packages (pupil-apriltags, opencv-contrib-python-headless, \
-           stag-python) behind a line protocol, single-threaded, with default parameters; their times are measured \
-           inside the adapter around the detect call only, ours around `Detector::detect`.\n\
+           stag-python, nanofractal) behind a line protocol, single-threaded, with default parameters; their times are \
+           measured inside the adapter around the detect call only, ours around `Detector::detect`.\n\
+         - The fractal markers (Romero-Ramirez et al., IEEE Access 2019; nanofractal, FRACTAL_5L_6) are not in the \
+           paper: they are the peer designed for occlusion. Their marker square is the outer level's black square; \
+           when that level is hidden, the adapter extrapolates its corners from the inner levels (marked estimated), \
+           as CopperTag does for hidden corners.\n\
          - CPU is reported as a share of this machine and of one core; memory as peak resident memory. For CopperTag \
            (in process) memory is the evaluation process's peak, an upper bound.\n\
          - A marker counts as found when the id is right and every corner is within 3 px or 5% of the marker side \
            (the larger); the paper does not state its rule.\n\
          - The occlusion patterns are ours (`datasets/occlusions/paper/`), built to the paper's description \
-           (5/10/15/20% coverage; triangle, same-side, symmetry, diagonal, inner), applied identically to all four \
+           (5/10/15/20% coverage; triangle, same-side, symmetry, diagonal, inner), applied identically to all five \
            marker systems; the paper's exact masks are not published.\n\n",
         resources::machine(),
         versions.iter().map(|v| format!("  - {v}")).collect::<Vec<_>>().join("\n")

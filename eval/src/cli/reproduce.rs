@@ -26,7 +26,7 @@ use super::report::preamble;
 #[command(after_help = "Examples:\n  \
     coppertag reproduce                      # everything, into build/ and reports/\n  \
     coppertag reproduce --quick --work build/quick --reports build/quick/reports\n\n\
-    Spec files are datasets/<dir>/<marker>-<name>.toml; <marker> (coppertag, apriltag3, aruco3, stag)\n\
+    Spec files are datasets/<dir>/<marker>-<name>.toml; <marker> (coppertag, apriltag3, aruco3, stag, fractal)\n\
     picks the detector that runs on the dataset. Specs in --wild (default datasets/wild, skipped when\n\
     absent) without a marker prefix are run by every detector; the wild runs make the report's wild\n\
     section (rough detections, pose error, jitter, false positives per MP, factor curves). Wild specs\n\
@@ -66,7 +66,7 @@ pub struct ReproduceArgs {
     #[arg(long, default_value = "eval/peers")]
     pub peers: PathBuf,
 
-    /// Only these marker systems (default: all four).
+    /// Only these marker systems (default: all five).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 

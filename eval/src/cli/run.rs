@@ -23,8 +23,8 @@ pub struct RunArgs {
     #[arg(long)]
     pub dataset: PathBuf,
 
-    /// Detector: coppertag (in process), apriltag3, aruco3 or stag (Python
-    /// adapters in --peers).
+    /// Detector: coppertag (in process), apriltag3, aruco3, stag or fractal
+    /// (Python adapters in --peers).
     #[arg(long, required_unless_present = "command")]
     pub detector: Option<String>,
 

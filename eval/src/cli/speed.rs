@@ -28,7 +28,7 @@ pub struct SpeedArgs {
     #[arg(long, short)]
     pub output: Option<PathBuf>,
 
-    /// Peers to compare with (default: apriltag3, aruco3, stag).
+    /// Peers to compare with (default: apriltag3, aruco3, stag, fractal).
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 
@@ -107,7 +107,12 @@ pub fn run(args: &SpeedArgs) -> Result<()> {
     };
     options.validate()?;
     let names: Vec<String> = if args.only.is_empty() {
-        vec!["apriltag3".into(), "aruco3".into(), "stag".into()]
+        vec![
+            "apriltag3".into(),
+            "aruco3".into(),
+            "stag".into(),
+            "fractal".into(),
+        ]
     } else {
         args.only.clone()
     };
