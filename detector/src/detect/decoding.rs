@@ -11,6 +11,7 @@
 
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch};
+use super::verify::{verify, Verdict};
 use super::Detection;
 use crate::decode::{decode_quad_with, DecodeParams};
 use crate::family::Family;
@@ -143,6 +144,7 @@ fn read(
             id: r.id,
             corners: r.corners,
             estimated,
+            corner_sigma: None,
             corrected: r.corrected,
             center,
             contrast: r.contrast,
@@ -171,6 +173,40 @@ pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
         }
     }
     out.sort_by(|a, b| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
+    out
+}
+
+/// Each detection verified against its own tag's model ([`verify`]):
+/// corners, uncertainties and estimated flags from the fit, or the
+/// detection dropped when the fit contradicts its cells. Detections the
+/// fit cannot judge (too small, too hidden) stay as they are.
+pub(crate) fn verify_all(
+    img: &GrayView<'_>,
+    found: Vec<Detection>,
+    targets: &[Target],
+    p: &DecodingParams,
+) -> Vec<Detection> {
+    let mut out = Vec::with_capacity(found.len());
+    for mut d in found {
+        let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
+            out.push(d);
+            continue;
+        };
+        match verify(img, &t.family, d.id, &d.corners, d.contrast, &p.decode) {
+            Verdict::Fitted(v) => {
+                d.corners = v.corners;
+                for (e, u) in d.estimated.iter_mut().zip(v.unsupported) {
+                    *e |= u;
+                }
+                d.corner_sigma = v.sigma.iter().all(|s| s.is_finite()).then_some(v.sigma);
+                d.center = v.homography.map([0.0, 0.0]).unwrap_or(d.center);
+                d.homography = v.homography;
+                out.push(d);
+            }
+            Verdict::Unfit => out.push(d),
+            Verdict::Contradicted => {}
+        }
+    }
     out
 }
 

@@ -17,7 +17,10 @@
 //!    edge pieces its corners were seen on;
 //! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
 //!    then [`crate::decode_quad_with`] at full resolution, rival readings of
-//!    one tag, one detection per tag.
+//!    one tag, one detection per tag;
+//! 7. `verify`: the decoded tag's own model (margin, cell edges) re-fits
+//!    each detection's homography with robust weights, gives each corner
+//!    an uncertainty and drops readings the fit contradicts.
 //!
 //! Every threshold is either a [`DetectorConfig`] setting or a named,
 //! documented constant of its stage module; the stage parameter structs are
@@ -35,6 +38,7 @@ pub(crate) mod lines;
 pub(crate) mod quads;
 pub(crate) mod refine;
 pub(crate) mod threshold;
+pub(crate) mod verify;
 
 use std::time::{Duration, Instant};
 
@@ -58,8 +62,14 @@ pub struct Detection {
     /// input image); corner 0 is always the tag's physical top-left.
     pub corners: [[f64; 2]; 4],
     /// Which corners were estimated (hidden, recovered from the other
-    /// corners' lines or the tag centre) rather than measured.
+    /// corners' lines or the tag centre, or with no visible edge of the
+    /// tag near them) rather than measured.
     pub estimated: [bool; 4],
+    /// One-sigma uncertainty of each corner (px, radial: the root of the
+    /// trace of its 2 x 2 covariance), from the fit of the tag's model to
+    /// its visible edges; `None` when the tag was too small or too hidden
+    /// for that fit and its corners are the side lines' intersections.
+    pub corner_sigma: Option<[f64; 4]>,
     /// Reed-Solomon symbols corrected while decoding: 0 for a clean read;
     /// filter on it for confidence.
     pub corrected: usize,
@@ -93,6 +103,8 @@ pub struct StageTimes {
     pub decode: Duration,
     /// One detection per tag, sorted.
     pub dedup: Duration,
+    /// Model fit of each detection.
+    pub verify: Duration,
     /// Whole frame.
     pub total: Duration,
 }
@@ -110,6 +122,7 @@ impl StageTimes {
             ("quads", self.quads),
             ("decode", self.decode),
             ("dedup", self.dedup),
+            ("verify", self.verify),
             ("total", self.total),
         ]
         .into_iter()
@@ -353,6 +366,8 @@ impl Detector {
         st.times.decode = laps.lap();
         let out = decoding::one_per_tag(found);
         st.times.dedup = laps.lap();
+        let out = decoding::verify_all(&img, out, &self.targets, &p.decoding);
+        st.times.verify = laps.lap();
         st.decode_attempts = attempts;
         st.contours = ws.contours.list.len();
         st.lines = ws.polys.lines.len();

@@ -70,6 +70,8 @@ struct JsonDetection<'a> {
     id: u64,
     corners: [[f64; 2]; 4],
     estimated: [bool; 4],
+    /// One-sigma corner uncertainty (px), null when the tag was not fitted.
+    corner_sigma: Option<[f64; 4]>,
     corrected: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<TagPose>,
@@ -153,6 +155,7 @@ fn one_image(
                     id: d.id,
                     corners: d.corners,
                     estimated: d.estimated,
+                    corner_sigma: d.corner_sigma,
                     corrected: d.corrected,
                     pose: *p,
                 })
