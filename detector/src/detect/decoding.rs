@@ -212,15 +212,22 @@ pub(crate) fn verify_all(
                 let moved = (0..4)
                     .map(|k| norm(sub(v.corners[k], d.corners[k])))
                     .fold(0.0, f64::max);
+                let mut sigma = v.sigma;
                 if moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * side) {
                     d.corners = v.corners;
                     d.center = v.homography.map([0.0, 0.0]).unwrap_or(d.center);
                     d.homography = v.homography;
+                } else {
+                    // The kept corner is uncertain by the fit's own sigma
+                    // and by how far the fit puts it.
+                    for (k, sg) in sigma.iter_mut().enumerate() {
+                        *sg = sg.hypot(norm(sub(v.corners[k], d.corners[k])));
+                    }
                 }
                 for (e, u) in d.estimated.iter_mut().zip(v.unsupported) {
                     *e |= u;
                 }
-                d.corner_sigma = v.sigma.iter().all(|s| s.is_finite()).then_some(v.sigma);
+                d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
                 out.push(d);
             }
             Verdict::Unfit => out.push(d),
