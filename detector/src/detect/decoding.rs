@@ -203,7 +203,15 @@ pub(crate) fn verify_all(
             out.push(d);
             continue;
         };
-        match verify(img, &t.family, d.id, &d.corners, d.contrast, &p.decode) {
+        match verify(
+            img,
+            &t.family,
+            d.id,
+            &d.corners,
+            d.contrast,
+            d.corrected,
+            &p.decode,
+        ) {
             Verdict::Fitted(v) => {
                 let side = (0..4)
                     .map(|k| norm(sub(d.corners[(k + 1) % 4], d.corners[k])))
