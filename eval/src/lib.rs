@@ -25,6 +25,7 @@ pub mod pose_error;
 pub mod protocol;
 pub mod report;
 pub mod resources;
+pub mod ros2;
 pub mod runlog;
 pub mod runner;
 pub mod shard;

@@ -155,10 +155,18 @@ pub struct Summary {
     pub cpu_percent: f64,
     /// Peak resident memory, MiB.
     pub peak_memory_mib: f64,
+    /// Detector sessions that ran at once ([`crate::runner::RunInfo::sessions`]):
+    /// `time_ms` is comparable with other runs only when this is 1.
+    #[serde(default = "one_session")]
+    pub sessions: usize,
     /// Match rule used.
     pub rule: MatchRule,
     /// Per image outcomes, for figures.
     pub per_image: Vec<ImageOutcome>,
+}
+
+fn one_session() -> usize {
+    1
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -193,6 +201,7 @@ pub fn evaluate(run: &RunLog, dataset: &Dataset, rule: MatchRule) -> Summary {
         time_ms: Stats::default(),
         cpu_percent: 0.0,
         peak_memory_mib: run.resources.peak_rss as f64 / (1u64 << 20) as f64,
+        sessions: run.info.sessions,
         rule,
         per_image: Vec::new(),
     };

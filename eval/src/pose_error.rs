@@ -98,6 +98,23 @@ impl CameraModel {
         self.lens.project(&Vector3::from(p))
     }
 
+    /// Pose of a tag from its corners as detected in the distorted image:
+    /// the corners are undistorted, then IPPE solves with the intrinsics.
+    /// `side` is the data square's side (metres).
+    pub fn tag_pose(
+        &self,
+        corners: &[[f64; 2]; 4],
+        side: f64,
+    ) -> coppertag::Result<coppertag::pose::TagPose> {
+        let undistorted = corners.map(|p| self.undistort_px(p));
+        coppertag::pose::tag_pose(&undistorted, &self.intrinsics(), side)
+    }
+
+    /// Image width and height the model was made for.
+    pub fn size(&self) -> (u32, u32) {
+        (self.lens.width, self.lens.height)
+    }
+
     fn intrinsics(&self) -> coppertag::pose::Intrinsics {
         coppertag::pose::Intrinsics {
             fx: self.lens.fx,

@@ -37,15 +37,21 @@ pub struct DetectionsMessage {
     pub result: ImageResult,
 }
 
-fn detections_schema() -> serde_json::Value {
+/// The `coppertag.Detections` JSON schema, shared by runs over datasets and
+/// detection over recordings (`coppertag detect --mcap`), which adds the
+/// optional `stamp`, `frame_id` and per-detection `pose`.
+pub(crate) fn detections_schema() -> serde_json::Value {
     json!({
         "title": "coppertag.Detections",
-        "description": "Markers one detector found in one dataset image. Corners TL, BL, BR, TR in pixel-centre coordinates.",
+        "description": "Markers one detector found in one dataset image or recorded frame. Corners TL, BL, BR, TR in pixel-centre coordinates; poses in metres, tag frame to camera frame.",
         "type": "object",
         "required": ["index", "image", "detections"],
         "properties": {
             "index": {"type": "integer", "minimum": 0},
-            "image": {"type": "string"},
+            "image": {"type": "string", "description": "image file, or the recording's image topic"},
+            "stamp": {"type": "object", "description": "the recorded frame's header stamp",
+                "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}}},
+            "frame_id": {"type": "string", "description": "the recorded frame's camera frame"},
             "ms": {"type": "number", "description": "detection time, ms, around the detect call only"},
             "error": {"type": "string"},
             "detections": {"type": "array", "items": {
@@ -57,7 +63,9 @@ fn detections_schema() -> serde_json::Value {
                     "corners": {"type": "array", "minItems": 4, "maxItems": 4,
                         "items": {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}}},
                     "estimated": {"type": "array", "minItems": 4, "maxItems": 4, "items": {"type": "boolean"}},
-                    "corrected": {"type": ["integer", "null"]}
+                    "corrected": {"type": ["integer", "null"]},
+                    "pose": {"type": "object", "description": "IPPE's two solutions, better first: rotation (row-major), translation (m), reprojection_px",
+                        "properties": {"best": {"type": "object"}, "alternative": {"type": "object"}}}
                 }
             }}
         }
@@ -65,10 +73,18 @@ fn detections_schema() -> serde_json::Value {
 }
 
 fn annotations(index: usize, result: &ImageResult) -> serde_json::Value {
-    let ts = stamp(log_time(index));
+    annotations_at(&stamp(log_time(index)), &result.detections)
+}
+
+/// A `foxglove.ImageAnnotations` message of `detections` stamped `ts` (a
+/// Foxglove time): outlines, estimated corners and ids.
+pub(crate) fn annotations_at(
+    ts: &serde_json::Value,
+    detections: &[crate::protocol::DetectionRecord],
+) -> serde_json::Value {
     let mut points = Vec::new();
     let mut texts = Vec::new();
-    for d in &result.detections {
+    for d in detections {
         let pts: Vec<_> = d
             .corners
             .iter()
@@ -105,7 +121,9 @@ fn annotations(index: usize, result: &ImageResult) -> serde_json::Value {
     json!({"circles": [], "points": points, "texts": texts})
 }
 
-fn to_map<T: Serialize>(value: &T) -> BTreeMap<String, String> {
+/// A value's fields as MCAP metadata: strings as they are, anything else as
+/// JSON text.
+pub(crate) fn to_map<T: Serialize>(value: &T) -> BTreeMap<String, String> {
     let v = serde_json::to_value(value).unwrap_or_default();
     v.as_object()
         .map(|o| {

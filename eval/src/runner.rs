@@ -90,6 +90,17 @@ pub struct RunInfo {
     /// ([`crate::shard`]); empty for a whole run.
     #[serde(default)]
     pub shard: String,
+    /// Detector sessions that ran at the same time, each on a shard of the
+    /// images ([`run_parallel`]); 1 for a run made one image after another.
+    /// Per-image times of a run with more than one are not comparable with
+    /// the others (the sessions share the machine's cores, caches and
+    /// memory bandwidth), so the report does not quote them.
+    #[serde(default = "one_session")]
+    pub sessions: usize,
+}
+
+fn one_session() -> usize {
+    1
 }
 
 /// Resource use of a run.
@@ -106,6 +117,21 @@ pub struct RunResources {
     /// Peak resident memory of the detector's process, bytes. For ours this
     /// is the whole evaluation process, an upper bound.
     pub peak_rss: u64,
+}
+
+impl RunResources {
+    /// Adds the resources of another part of the same run (a shard run
+    /// by another process): counts, CPU and wall seconds are summed (so
+    /// CPU share stays total CPU over total wall time), and peak memory is
+    /// the largest, the only meaningful merge of measurements made by
+    /// separate processes.
+    pub fn add(&mut self, other: &RunResources) {
+        self.images += other.images;
+        self.errors += other.errors;
+        self.wall_s += other.wall_s;
+        self.cpu_s += other.cpu_s;
+        self.peak_rss = self.peak_rss.max(other.peak_rss);
+    }
 }
 
 /// Result for one image, with its dataset index.
@@ -405,6 +431,68 @@ pub fn run_shard(
     Ok(out)
 }
 
+/// Runs `spec` over every image of `dataset` with `workers` detector
+/// sessions at once, session `k` on shard `k/workers`, and puts the parts
+/// together as [`crate::shard::merge`] does for a cluster's shards: the
+/// same per-image results in dataset order as [`run`] gives, resources
+/// summed. Every session is single-threaded (ours runs on its own thread,
+/// each peer in its own process pinned to one thread), so with `workers`
+/// at most the number of cores each frame is still timed on a core of
+/// its own. `progress(done, total)` counts images over all sessions.
+pub fn run_parallel(
+    spec: &DetectorSpec,
+    dataset: &Dataset,
+    workers: usize,
+    progress: impl Fn(usize, usize) + Sync,
+) -> Result<RunOutput> {
+    let workers = workers.clamp(1, dataset.images.len().max(1));
+    if workers == 1 {
+        return run(spec, dataset, progress);
+    }
+    let total = dataset.images.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tick = || {
+        let d = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        progress(d, total);
+    };
+    let parts: Vec<Result<RunOutput>> = std::thread::scope(|scope| {
+        let handles: Vec<_> = (0..workers)
+            .map(|index| {
+                let shard = crate::shard::Shard {
+                    index,
+                    count: workers,
+                };
+                let tick = &tick;
+                scope.spawn(move || run_shard(spec, dataset, Some(shard), |_, _| tick()))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| {
+                h.join().unwrap_or_else(|_| {
+                    Err(EvalError::Detector {
+                        detector: spec.name().into(),
+                        message: "a detector session panicked".into(),
+                    })
+                })
+            })
+            .collect()
+    });
+    let mut parts = parts.into_iter().collect::<Result<Vec<_>>>()?;
+    let mut whole = parts.remove(0);
+    whole.info.shard = String::new();
+    whole.info.sessions = workers;
+    for p in &parts {
+        whole.resources.add(&p.resources);
+        whole.info.started_unix_s = whole.info.started_unix_s.min(p.info.started_unix_s);
+    }
+    whole
+        .results
+        .extend(parts.into_iter().flat_map(|p| p.results));
+    whole.results.sort_by_key(|r| r.index);
+    Ok(whole)
+}
+
 /// Runs `spec` over every image of `dataset`; `progress(done, total)` is
 /// called after each image.
 ///
@@ -458,6 +546,7 @@ pub fn run(
             machine: resources::machine(),
             started_unix_s,
             shard: String::new(),
+            sessions: 1,
         },
         results,
         resources,

@@ -198,12 +198,7 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     let mut images: Vec<DetectionsMessage> = Vec::new();
     let mut resources = crate::runner::RunResources::default();
     for &i in &order {
-        let r = parts[i].resources;
-        resources.images += r.images;
-        resources.errors += r.errors;
-        resources.wall_s += r.wall_s;
-        resources.cpu_s += r.cpu_s;
-        resources.peak_rss = resources.peak_rss.max(r.peak_rss);
+        resources.add(&parts[i].resources);
         images.append(&mut parts[i].images);
     }
     images.sort_by_key(|m| m.index);
@@ -216,6 +211,7 @@ pub fn merge(mut parts: Vec<RunLog>) -> Result<RunLog> {
     }
     let mut info = parts[order[0]].info.clone();
     info.shard = String::new();
+    info.sessions = parts.iter().map(|p| p.info.sessions).max().unwrap_or(1);
     Ok(RunLog {
         info,
         resources,

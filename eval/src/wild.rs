@@ -282,6 +282,7 @@ pub(crate) mod tests {
                 machine: String::new(),
                 started_unix_s: 0,
                 shard: String::new(),
+                sessions: 1,
             },
             resources: RunResources::default(),
             images: images

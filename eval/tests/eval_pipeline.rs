@@ -11,30 +11,15 @@ use coppertag_eval::runlog::{self, RunLog};
 use coppertag_eval::runner::{self, DetectorSpec};
 use coppertag_eval::truth::Dataset;
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
-
-fn coppertag() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_coppertag"))
-}
+mod common;
+use common::{coppertag, render_rotated_z, repo};
 
 /// A 13-image rotated-z CopperTag dataset, rendered once per test binary.
 fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("ds");
-        let st = coppertag()
-            .args(["synth", "--quiet", "--every", "30", "-o"])
-            .arg(&out)
-            .arg(repo().join("datasets/paper/coppertag-rotated-z.toml"))
-            .status()
-            .unwrap();
-        assert!(st.success(), "synth failed");
+        render_rotated_z(dir.path());
         dir
     })
     .path()
@@ -50,6 +35,97 @@ fn run_ours(tmp: &Path) -> (PathBuf, runner::RunOutput) {
     let path = tmp.join("run.mcap");
     runlog::save(&path, &out).unwrap();
     (path, out)
+}
+
+/// Several sessions at once, each on a shard, give exactly the results of
+/// one session in dataset order (per-image times aside), one progress tick
+/// per image, and the sessions' images and errors summed.
+#[test]
+fn parallel_sessions_give_the_sequential_results() {
+    let ds = Dataset::open(dataset()).unwrap();
+    let spec =
+        DetectorSpec::by_name("coppertag", Path::new("unused"), Path::new("unused")).unwrap();
+    let without_times = |out: &runner::RunOutput| {
+        out.results
+            .iter()
+            .map(|r| {
+                let mut r = r.clone();
+                r.result.ms = None;
+                r
+            })
+            .collect::<Vec<_>>()
+    };
+    let one = runner::run(&spec, &ds, |_, _| {}).unwrap();
+    for workers in [1, 3, 40] {
+        let ticks = std::sync::atomic::AtomicUsize::new(0);
+        let last = std::sync::Mutex::new((0, 0));
+        let par = runner::run_parallel(&spec, &ds, workers, |done, total| {
+            ticks.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let mut l = last.lock().unwrap();
+            *l = (l.0.max(done), total);
+        })
+        .unwrap();
+        assert_eq!(
+            without_times(&par),
+            without_times(&one),
+            "{workers} workers"
+        );
+        assert!(par.results.iter().all(|r| r.result.ms.is_some()));
+        assert_eq!(ticks.into_inner(), 13, "{workers} workers");
+        assert_eq!(*last.lock().unwrap(), (13, 13));
+        assert_eq!((par.resources.images, par.resources.errors), (13, 0));
+        assert!(par.info.shard.is_empty());
+        assert_eq!(par.info.sessions, workers.min(13));
+        assert!(par.results.iter().any(|r| !r.result.detections.is_empty()));
+    }
+}
+
+/// The report quotes no time for a run whose sessions ran side by side
+/// (their per-image times are not comparable), and quotes it otherwise;
+/// the sessions survive the run log.
+#[test]
+fn runs_of_parallel_sessions_show_no_time() {
+    let tmp = tempfile::tempdir().unwrap();
+    let ds = Dataset::open(dataset()).unwrap();
+    let spec =
+        DetectorSpec::by_name("coppertag", Path::new("unused"), Path::new("unused")).unwrap();
+    let mut summaries = Vec::new();
+    for workers in [1, 2] {
+        let out = runner::run_parallel(&spec, &ds, workers, |_, _| {}).unwrap();
+        let path = tmp.path().join(format!("run{workers}.mcap"));
+        runlog::save(&path, &out).unwrap();
+        let log = RunLog::read(&path).unwrap();
+        assert_eq!(log.info.sessions, workers);
+        let s = evaluate(&log, &ds, MatchRule::default());
+        assert_eq!(s.sessions, workers);
+        summaries.push(s);
+    }
+    let machine = coppertag_eval::report::Machine {
+        cores: 2,
+        memory: 1 << 30,
+    };
+    let md = coppertag_eval::report::write_report(
+        &summaries,
+        &tmp.path().join("reports"),
+        machine,
+        "",
+        None,
+    )
+    .unwrap();
+    let rows: Vec<&str> = md
+        .lines()
+        .filter(|l| l.starts_with("| coppertag-rotated-z | coppertag |"))
+        .collect();
+    assert_eq!(rows.len(), 2, "{md}");
+    let time = |row: &str| {
+        row.trim_end_matches(" |")
+            .rsplit("| ")
+            .next()
+            .unwrap()
+            .to_string()
+    };
+    assert!(time(rows[0]).parse::<f64>().unwrap() > 0.0, "{}", rows[0]);
+    assert_eq!(time(rows[1]), "-", "{}", rows[1]);
 }
 
 #[test]

@@ -2,11 +2,9 @@
 //! 2 with a one-line error and leaves no file behind.
 
 use std::path::Path;
-use std::process::Command;
 
-fn coppertag() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_coppertag"))
-}
+mod common;
+use common::coppertag;
 
 fn files_in(dir: &Path) -> Vec<String> {
     let mut v: Vec<String> = std::fs::read_dir(dir)

@@ -3,22 +3,13 @@
 //! (a rendered set plus a hand-written draws.csv).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use std::sync::OnceLock;
 
 use coppertag_eval::runlog::{self, RunLog};
 use coppertag_eval::runner::{RunOutput, RunResources};
 
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .parent()
-        .unwrap()
-        .to_path_buf()
-}
-
-fn coppertag() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_coppertag"))
-}
+mod common;
+use common::{coppertag, render_rotated_z};
 
 /// A 13-image rotated-z CopperTag dataset (indices 0, 30, ..., 360) with a
 /// draws.csv: image-level defocus and occluder kind, a per-marker roll and
@@ -27,14 +18,7 @@ fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
         let dir = tempfile::tempdir().unwrap();
-        let out = dir.path().join("ds");
-        let st = coppertag()
-            .args(["synth", "--quiet", "--every", "30", "-o"])
-            .arg(&out)
-            .arg(repo().join("datasets/paper/coppertag-rotated-z.toml"))
-            .status()
-            .unwrap();
-        assert!(st.success(), "synth failed");
+        let out = render_rotated_z(dir.path());
         let mut draws = String::from("index,marker_index,factor,value\n");
         for k in 0..13 {
             let i = 30 * k;

@@ -5,11 +5,13 @@
 //! the baseline as it was.
 
 use std::path::Path;
-use std::process::Command;
 
 use coppertag_eval::gate::{baseline_of, check_wild, wild_key, Baseline};
 use coppertag_eval::wild::{MarkerOutcome, Status, WildRun};
 use coppertag_eval::wild_summary::{summarise, WildSummary};
+
+mod common;
+use common::coppertag;
 
 fn outcome(index: usize, status: Status) -> MarkerOutcome {
     MarkerOutcome {
@@ -113,10 +115,6 @@ fn every_gated_figure_getting_worse_fails() {
     // CopperTag missing from the run fails.
     let fails = check_wild(&b, &summarise(&slice("stag", 0, 0, 0, 0)));
     assert!(fails[0].contains("missing"), "{fails:?}");
-}
-
-fn coppertag() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_coppertag"))
 }
 
 fn write_json(path: &Path, v: &impl serde::Serialize) {

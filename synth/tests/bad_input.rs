@@ -5,6 +5,9 @@ use std::path::{Path, PathBuf};
 
 use coppertag_synth::{DatasetSpec, SynthError};
 
+mod common;
+use common::camera_factors;
+
 const GOOD: &str = r#"name = "t"
 seed = 3
 
@@ -207,7 +210,8 @@ fn a_broken_occluder_file_is_named_with_its_line() {
     assert_eq!(line, line_of(&text, "missing.toml"), "{msg}");
 }
 
-const GOOD_SAMPLE: &str = r#"name = "s"
+const GOOD_SAMPLE: &str = concat!(
+    r#"name = "s"
 seed = 3
 
 [camera]
@@ -229,20 +233,14 @@ id = "any"
 contrast = [0.45, 0.88]
 background = ["flat", "clutter"]
 clutter_density = [0, 600]
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-glare_peak = [0, 1.5]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-occluder_kind = ["none", "stick", "flush-tape"]
+"#,
+    camera_factors!(),
+    r#"occluder_kind = ["none", "stick", "flush-tape"]
 occluder_coverage = [0.02, 0.4]
 occluder_style = ["ink", "tape"]
 occluder_fill = [0.02, 0.95]
-"#;
+"#
+);
 
 #[test]
 fn the_good_sampled_spec_loads() {
@@ -542,7 +540,8 @@ fn bad_photo_directories_point_at_background_dir() {
 
 /// A sampled spec with every key of `[sample]`; its files are made by
 /// [`full_sample_files`].
-const FULL_SAMPLE: &str = r#"name = "s"
+const FULL_SAMPLE: &str = concat!(
+    r#"name = "s"
 seed = 3
 
 [camera]
@@ -568,21 +567,15 @@ background = ["flat", "gradient", "clutter", "image"]
 clutter_density = [0, 600]
 background_images = ["wall.png"]
 background_dir = "photos"
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-glare_peak = [0, 1.5]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-occluder_kind = ["none", "stick", "flush-tape", "glove-cutout"]
+"#,
+    camera_factors!(),
+    r#"occluder_kind = ["none", "stick", "flush-tape", "glove-cutout"]
 occluder_files = ["cutouts"]
 occluder_coverage = [0.02, 0.4]
 occluder_style = ["ink", "tape"]
 occluder_fill = [0.02, 0.95]
-"#;
+"#
+);
 
 /// The photographs and cutouts `FULL_SAMPLE` names, in `dir`.
 fn full_sample_files(dir: &Path) {

@@ -7,6 +7,9 @@ use std::path::{Path, PathBuf};
 use coppertag_synth::foxglove::base64;
 use coppertag_synth::{generate, DatasetSpec, GenerateOptions, SynthError};
 
+mod common;
+use common::{generate_every, read_tree, run, same_bytes_on_1_and_2_threads};
+
 fn paper_patterns() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/occlusions/paper")
 }
@@ -97,51 +100,19 @@ count = 2
     path
 }
 
-fn read_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
-                out.insert(rel, std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
-
-fn run_in_pool(threads: usize, spec: &DatasetSpec, out: &Path) {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(|| generate(spec, out, &GenerateOptions::default(), &|_, _| {}).unwrap());
-}
-
 #[test]
 fn same_spec_and_seed_give_identical_bytes() {
     let tmp = tempfile::tempdir().unwrap();
     let spec = DatasetSpec::load(&busy_spec(tmp.path())).unwrap();
     // 3 sweep values x (2 patterns + 2 generated) = 12 images.
     assert_eq!(spec.image_count(), 12);
-    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    run_in_pool(1, &spec, &a);
-    run_in_pool(2, &spec, &b);
-    let (ta, tb) = (read_tree(&a), read_tree(&b));
-    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
-    for (name, bytes) in &ta {
-        assert!(bytes == &tb[name], "{name} differs between runs");
-    }
+    let ta = same_bytes_on_1_and_2_threads(&spec, tmp.path());
     assert_eq!(ta.len(), 12 + 3);
     // A different seed changes the images.
     let mut other = spec.clone();
     other.seed = 8;
     let c = tmp.path().join("c");
-    run_in_pool(2, &other, &c);
+    run(2, &other, &c, None);
     assert_ne!(read_tree(&c)["images/000000.png"], ta["images/000000.png"]);
     // No temporary directories left beside the outputs.
     let leftovers: Vec<_> = std::fs::read_dir(tmp.path())
@@ -157,16 +128,7 @@ fn dataset_files_agree_with_each_other() {
     let tmp = tempfile::tempdir().unwrap();
     let spec = DatasetSpec::load(&busy_spec(tmp.path())).unwrap();
     let out = tmp.path().join("ds");
-    let report = generate(
-        &spec,
-        &out,
-        &GenerateOptions {
-            every: 5,
-            force: false,
-        },
-        &|_, _| {},
-    )
-    .unwrap();
+    let report = generate_every(&spec, &out, 5);
     assert_eq!(report.images, 3, "every 5th of 12: images 0, 5, 10");
 
     // truth.csv: one row per marker per image, in image order.

@@ -3,13 +3,19 @@
 //! shards whose union is the whole dataset byte for byte.
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use coppertag_synth::{generate, generate_shard, DatasetSpec, GenerateOptions, Shard};
+use coppertag_synth::{generate, DatasetSpec, GenerateOptions, Shard};
+
+mod common;
+use common::{
+    camera_factors, csv_rows, load, read_tree, run, same_bytes_on_1_and_2_threads, write,
+};
 
 fn sampled(system: &str, family: &str, extra: &str) -> String {
     format!(
-        r#"
+        concat!(
+            r#"
 name = "s"
 seed = 11
 
@@ -33,97 +39,34 @@ id = "any"
 contrast = [0.45, 0.88]
 background = ["flat", "gradient", "clutter"]
 clutter_density = [0, 600]
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-glare_peak = [0, 1.5]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-occluder_kind = ["none", "triangle", "stick", "cable", "flush-tape", "blob"]
+"#,
+            camera_factors!(),
+            r#"occluder_kind = ["none", "triangle", "stick", "cable", "flush-tape", "blob"]
 occluder_coverage = [0.02, 0.4]
 occluder_style = ["ink", "tape", "dirt"]
 occluder_fill = [0.02, 0.95]
 {extra}
 "#
+        ),
+        system = system,
+        family = family,
+        extra = extra,
     )
-}
-
-fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
-    let p = dir.join(name);
-    std::fs::write(&p, text).unwrap();
-    p
-}
-
-fn read_tree(dir: &Path) -> BTreeMap<String, Vec<u8>> {
-    let mut out = BTreeMap::new();
-    let mut stack = vec![dir.to_path_buf()];
-    while let Some(d) = stack.pop() {
-        for e in std::fs::read_dir(&d).unwrap() {
-            let p = e.unwrap().path();
-            if p.is_dir() {
-                stack.push(p);
-            } else {
-                let rel = p.strip_prefix(dir).unwrap().to_string_lossy().into_owned();
-                out.insert(rel, std::fs::read(&p).unwrap());
-            }
-        }
-    }
-    out
-}
-
-fn run(threads: usize, spec: &DatasetSpec, out: &Path, shard: Option<Shard>) {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .unwrap()
-        .install(|| {
-            generate_shard(spec, out, &GenerateOptions::default(), shard, &|_, _| {}).unwrap()
-        });
-}
-
-fn csv_rows(path: &Path) -> (Vec<String>, Vec<Vec<String>>) {
-    let mut rd = csv::Reader::from_path(path).unwrap();
-    let header = rd.headers().unwrap().iter().map(String::from).collect();
-    let rows = rd
-        .records()
-        .map(|r| r.unwrap().iter().map(String::from).collect())
-        .collect();
-    (header, rows)
 }
 
 #[test]
 fn sampled_datasets_are_the_same_on_any_thread_count() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec = DatasetSpec::load(&write(
-        tmp.path(),
-        "s.toml",
-        &sampled("coppertag", "ct14", ""),
-    ))
-    .unwrap();
+    let spec = load(tmp.path(), "s.toml", &sampled("coppertag", "ct14", ""));
     assert_eq!(spec.image_count(), 8);
-    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    run(1, &spec, &a, None);
-    run(2, &spec, &b, None);
-    let (ta, tb) = (read_tree(&a), read_tree(&b));
-    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
-    for (name, bytes) in &ta {
-        assert!(bytes == &tb[name], "{name} differs between 1 and 2 threads");
-    }
+    let ta = same_bytes_on_1_and_2_threads(&spec, tmp.path());
     assert!(ta.contains_key("draws.csv"));
 }
 
 #[test]
 fn draws_are_recorded_per_image_and_marker() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec = DatasetSpec::load(&write(
-        tmp.path(),
-        "s.toml",
-        &sampled("coppertag", "ct14", ""),
-    ))
-    .unwrap();
+    let spec = load(tmp.path(), "s.toml", &sampled("coppertag", "ct14", ""));
     let out = tmp.path().join("ds");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     let (header, draws) = csv_rows(&out.join("draws.csv"));
@@ -245,7 +188,7 @@ fn repeats_change_only_the_sensor_noise() {
     let text = sampled("coppertag", "ct14", "repeats = 3")
         .replace("jpeg_quality = [50, 100]\n", "")
         .replace("count = 8", "count = 2");
-    let spec = DatasetSpec::load(&write(tmp.path(), "j.toml", &text)).unwrap();
+    let spec = load(tmp.path(), "j.toml", &text);
     assert_eq!(spec.image_count(), 6);
     let out = tmp.path().join("j");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
@@ -291,12 +234,11 @@ fn repeats_change_only_the_sensor_noise() {
 #[test]
 fn shards_together_are_the_whole_dataset_byte_for_byte() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec = DatasetSpec::load(&write(
+    let spec = load(
         tmp.path(),
         "s.toml",
         &sampled("aruco3", "aruco_mip_36h12", ""),
-    ))
-    .unwrap();
+    );
     let whole = tmp.path().join("whole");
     run(2, &spec, &whole, None);
     let whole_tree = read_tree(&whole);
@@ -361,7 +303,7 @@ markers_per_frame = 0
 background = ["clutter"]
 clutter_density = [50, 1500]
 "#;
-    let spec = DatasetSpec::load(&write(tmp.path(), "fp.toml", text)).unwrap();
+    let spec = load(tmp.path(), "fp.toml", text);
     let out = tmp.path().join("fp");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     assert!(csv_rows(&out.join("truth.csv")).1.is_empty());
@@ -383,7 +325,8 @@ fn write_photo(dir: &Path, name: &str, k: u32) {
     img.save(dir.join(name)).unwrap();
 }
 
-const PHOTO_SPEC: &str = r#"
+const PHOTO_SPEC: &str = concat!(
+    r#"
 seed = 5
 [camera]
 width = 200
@@ -396,15 +339,9 @@ markers = []
 markers_per_frame = 0
 background = ["image"]
 background_dir = "photos"
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-"#;
+"#,
+    camera_factors!()
+);
 
 #[test]
 fn photo_frames_depend_on_the_photographs_not_their_directory() {
@@ -426,11 +363,8 @@ fn photo_frames_depend_on_the_photographs_not_their_directory() {
         .collect();
     assert_eq!(names, ["a.png", "b.png", "c.png"]);
     assert_eq!(s.background_digests.len(), 3);
-    let (a, b) = (tmp.path().join("a"), tmp.path().join("b"));
-    run(1, &spec, &a, None);
-    run(2, &spec, &b, None);
-    let ta = read_tree(&a);
-    assert_eq!(ta, read_tree(&b), "1 and 2 threads differ");
+    let ta = same_bytes_on_1_and_2_threads(&spec, tmp.path());
+    let a = tmp.path().join("a");
     let (_, draws) = csv_rows(&a.join("draws.csv"));
     let used: std::collections::BTreeSet<&str> = draws
         .iter()
@@ -463,7 +397,8 @@ fn photo_frames_depend_on_the_photographs_not_their_directory() {
 /// Every factor of `[sample]`, four marker systems, every occluder kind
 /// (the ten built-in ones, two cutouts and a polygon pattern file), photo
 /// backgrounds from a list and a directory, and repeats.
-const EVERYTHING: &str = r#"
+const EVERYTHING: &str = concat!(
+    r#"
 name = "everything"
 seed = 21
 
@@ -490,21 +425,15 @@ background = ["flat", "gradient", "clutter", "image"]
 clutter_density = [0, 600]
 background_images = ["wall.png"]
 background_dir = "photos"
-gradient = [0, 0.4]
-shadow_darkness = [0, 0.6]
-glare_peak = [0, 1.5]
-defocus_px = [0, 2]
-motion_blur_px = [0, 6]
-read_noise_dn = [0.5, 4]
-full_well_e = [5000, 20000]
-jpeg_quality = [50, 100]
-distortion_k1 = [-0.15, 0.05]
-occluder_kind = ["none", "triangle", "same-side", "symmetry", "diagonal", "inner", "stick", "cable", "flush-tape", "blob", "glove-cutout", "cable-cutout", "05-1-triangle"]
+"#,
+    camera_factors!(),
+    r#"occluder_kind = ["none", "triangle", "same-side", "symmetry", "diagonal", "inner", "stick", "cable", "flush-tape", "blob", "glove-cutout", "cable-cutout", "05-1-triangle"]
 occluder_files = ["cutouts", "paper/05-1-triangle.toml"]
 occluder_coverage = [0.02, 0.4]
 occluder_style = ["ink", "tape", "cable", "dirt", "paint", "cardboard", "solid"]
 occluder_fill = [0.02, 0.95]
-"#;
+"#
+);
 
 #[test]
 fn every_factor_and_occluder_kind_gives_the_same_bytes_on_1_and_2_threads() {
@@ -525,16 +454,10 @@ fn every_factor_and_occluder_kind_gives_the_same_bytes_on_1_and_2_threads() {
         dir.join("paper/05-1-triangle.toml"),
     )
     .unwrap();
-    let spec = DatasetSpec::load(&write(dir, "e.toml", EVERYTHING)).unwrap();
+    let spec = load(dir, "e.toml", EVERYTHING);
     assert_eq!(spec.image_count(), 28);
-    let (a, b) = (dir.join("a"), dir.join("b"));
-    run(1, &spec, &a, None);
-    run(2, &spec, &b, None);
-    let (ta, tb) = (read_tree(&a), read_tree(&b));
-    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
-    for (name, bytes) in &ta {
-        assert!(bytes == &tb[name], "{name} differs between 1 and 2 threads");
-    }
+    same_bytes_on_1_and_2_threads(&spec, dir);
+    let a = dir.join("a");
     // The draws reach many kinds, systems and backgrounds.
     let (_, draws) = csv_rows(&a.join("draws.csv"));
     let seen = |factor: &str| -> std::collections::BTreeSet<String> {
@@ -578,7 +501,7 @@ occluder_coverage = [0.05, 0.3]
 occluder_style = ["ink", "tape"]
 occluder_fill = [0.5, 0.9]
 "#;
-    let spec = DatasetSpec::load(&write(tmp.path(), "i.toml", text)).unwrap();
+    let spec = load(tmp.path(), "i.toml", text);
     let out = tmp.path().join("i");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     let (_, draws) = csv_rows(&out.join("draws.csv"));
@@ -620,7 +543,7 @@ side_px = [30, 40]
 occluder_kind = ["triangle", "same-side", "symmetry", "diagonal", "inner", "stick", "cable", "flush-tape", "blob"]
 occluder_coverage = [0.38, 0.40]
 "#;
-    let spec = DatasetSpec::load(&write(tmp.path(), "c.toml", text)).unwrap();
+    let spec = load(tmp.path(), "c.toml", text);
     for i in 0..spec.image_count() {
         let s = spec.sampled_scene(i).unwrap().unwrap();
         let kind = s
@@ -699,15 +622,9 @@ fn with_events(system: &str, family: &str) -> String {
 fn events_with_a_share_give_the_same_bytes_on_1_and_2_threads_and_are_absent_in_about_half() {
     let tmp = tempfile::tempdir().unwrap();
     let dir = tmp.path();
-    let spec = DatasetSpec::load(&write(dir, "e.toml", &with_events("coppertag", "ct14"))).unwrap();
-    let (a, b) = (dir.join("a"), dir.join("b"));
-    run(1, &spec, &a, None);
-    run(2, &spec, &b, None);
-    let (ta, tb) = (read_tree(&a), read_tree(&b));
-    assert_eq!(ta.keys().collect::<Vec<_>>(), tb.keys().collect::<Vec<_>>());
-    for (name, bytes) in &ta {
-        assert!(bytes == &tb[name], "{name} differs between 1 and 2 threads");
-    }
+    let spec = load(dir, "e.toml", &with_events("coppertag", "ct14"));
+    same_bytes_on_1_and_2_threads(&spec, dir);
+    let a = dir.join("a");
     let (_, draws) = csv_rows(&a.join("draws.csv"));
     let values = |factor: &str| -> Vec<String> {
         draws

@@ -3,7 +3,10 @@
 //! evenly; every 10th point is not) with all their renders, so that quick
 //! runs still measure jitter.
 
-use coppertag_synth::{generate, DatasetSpec, GenerateOptions};
+use coppertag_synth::{generate, GenerateOptions};
+
+mod common;
+use common::{generate_every, load};
 
 fn spec_text(repeats: usize) -> String {
     format!(
@@ -27,31 +30,16 @@ read_noise_dn = [0.5, 4]
     )
 }
 
-fn load(dir: &std::path::Path, text: &str) -> DatasetSpec {
-    let p = dir.join("thin.toml");
-    std::fs::write(&p, text).unwrap();
-    DatasetSpec::load(&p).unwrap()
-}
-
 #[test]
 fn thinning_keeps_jitter_groups_whole() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec = load(tmp.path(), &spec_text(3));
+    let spec = load(tmp.path(), "thin.toml", &spec_text(3));
     assert_eq!(spec.image_count(), 36);
     // The first 12 / 5 -> 3 scenes, each with its three renders.
     assert_eq!(spec.thinned_indices(5), (0..9).collect::<Vec<_>>());
     assert_eq!(spec.thinned_indices(1), (0..36).collect::<Vec<_>>());
     let out = tmp.path().join("out");
-    generate(
-        &spec,
-        &out,
-        &GenerateOptions {
-            every: 5,
-            force: false,
-        },
-        &|_, _| {},
-    )
-    .unwrap();
+    generate_every(&spec, &out, 5);
     let mut names: Vec<String> = std::fs::read_dir(out.join("images"))
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -66,7 +54,7 @@ fn thinning_keeps_jitter_groups_whole() {
 #[test]
 fn thinning_a_sampled_spec_keeps_the_spread_of_its_factors() {
     let tmp = tempfile::tempdir().unwrap();
-    let spec = load(tmp.path(), &spec_text(1));
+    let spec = load(tmp.path(), "thin.toml", &spec_text(1));
     assert_eq!(spec.thinned_indices(5), [0, 1, 2]);
     // Why a prefix: contrast is drawn in Halton base 3, so every 3rd scene
     // keeps to one third of its range; the first tenth spreads over it.
@@ -74,7 +62,7 @@ fn thinning_a_sampled_spec_keeps_the_spread_of_its_factors() {
         "read_noise_dn = [0.5, 4]",
         "read_noise_dn = [0.5, 4]\ncontrast = [0.45, 0.88]",
     );
-    let spec = load(tmp.path(), &text);
+    let spec = load(tmp.path(), "thin.toml", &text);
     let out = tmp.path().join("all");
     generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
     let draws = std::fs::read_to_string(out.join("draws.csv")).unwrap();

@@ -69,13 +69,19 @@ def threads(frames: list[np.ndarray]) -> tuple[float, float]:
         for _ in range(ROUND_CALLS):
             det.detect(frame)
 
+    return serial_and_parallel([lambda d=d, f=f: run(d, f) for d, f in zip(detectors, frames)])
+
+
+def serial_and_parallel(jobs: list) -> tuple[float, float]:
+    """Best of ROUNDS wall times (s) of running `jobs` one after another on
+    this thread, and of running each on its own thread at once."""
     serial, parallel = [], []
     for _ in range(ROUNDS):
         t0 = time.perf_counter()
-        for det, frame in zip(detectors, frames):
-            run(det, frame)
+        for job in jobs:
+            job()
         serial.append(time.perf_counter() - t0)
-        workers = [threading.Thread(target=run, args=(d, f)) for d, f in zip(detectors, frames)]
+        workers = [threading.Thread(target=job) for job in jobs]
         t0 = time.perf_counter()
         for w in workers:
             w.start()
@@ -95,20 +101,7 @@ def control() -> tuple[float, float]:
         for _ in range(3):
             np.sort(x)
 
-    serial, parallel = [], []
-    for _ in range(ROUNDS):
-        t0 = time.perf_counter()
-        for x in arrays:
-            run(x)
-        serial.append(time.perf_counter() - t0)
-        workers = [threading.Thread(target=run, args=(x,)) for x in arrays]
-        t0 = time.perf_counter()
-        for w in workers:
-            w.start()
-        for w in workers:
-            w.join()
-        parallel.append(time.perf_counter() - t0)
-    return min(serial), min(parallel)
+    return serial_and_parallel([lambda x=x: run(x) for x in arrays])
 
 
 def main() -> int:

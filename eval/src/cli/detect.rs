@@ -18,50 +18,104 @@ use coppertag_eval::atomic::write_atomic_with;
     coppertag detect frames/*.png --family ct14 --json\n  \
     coppertag detect photo.png --draw annotated.png\n  \
     coppertag detect a.png b.png --draw 'out/{name}-tags.png'\n  \
-    coppertag detect photo.png --json --fx 2730 --fy 2730 --cx 959.5 --cy 539.5 --tag-size 0.05")]
+    coppertag detect photo.png --json --fx 2730 --fy 2730 --cx 959.5 --cy 539.5 --tag-size 0.05\n  \
+    coppertag detect --mcap robot.mcap -o tags.mcap\n  \
+    coppertag detect --mcap robot.mcap --topic /cam/image_raw --tag-size 0.05 -o tags.mcap\n\n\
+    With --mcap, -o gets /coppertag/detections, /coppertag/annotations and (with poses)\n\
+    /coppertag/tf on the recording's timestamps: open it together with the recording in\n\
+    Foxglove (README.md, \"Detect tags in a ROS 2 recording\").")]
 pub struct DetectArgs {
     /// Image files (PNG or JPEG; colour images are converted to grey).
-    #[arg(required = true)]
-    images: Vec<PathBuf>,
+    #[arg(required_unless_present = "mcap", conflicts_with = "mcap")]
+    pub(super) images: Vec<PathBuf>,
+
+    /// Read a recording instead of image files: a rosbag2 MCAP file
+    /// (sensor_msgs/msg/Image in mono8, mono16, rgb8, bgr8, rgba8, bgra8 or
+    /// 8-bit Bayer, or sensor_msgs/msg/CompressedImage in JPEG or PNG; CDR) or a
+    /// dataset.mcap written by `coppertag synth`. Needs -o.
+    #[arg(long, value_name = "IN.mcap", requires = "output")]
+    pub(super) mcap: Option<PathBuf>,
+
+    /// The image topic to read (default: the recording's only image topic;
+    /// with several, the command lists them and stops).
+    #[arg(long, requires = "mcap")]
+    pub(super) topic: Option<String>,
+
+    /// The MCAP file to write (with --mcap); written whole or not at all.
+    #[arg(short, long, value_name = "OUT.mcap", requires = "mcap")]
+    pub(super) output: Option<PathBuf>,
+
+    /// Camera calibration to use instead of the recording's CameraInfo (by
+    /// default the sensor_msgs/msg/CameraInfo topic beside the image topic,
+    /// e.g. /cam/camera_info for /cam/image_raw): OpenCV or ROS
+    /// camera_calibration YAML (image_width, image_height, camera_matrix,
+    /// distortion_coefficients) or a foxglove.CameraCalibration JSON file.
+    /// Only plumb_bob distortion.
+    #[arg(long, value_name = "FILE", requires = "mcap")]
+    pub(super) camera: Option<PathBuf>,
+
+    /// Keep the frames before the damage of a truncated or damaged
+    /// recording (a recorder killed mid-write) instead of refusing it.
+    #[arg(long, requires = "mcap")]
+    pub(super) allow_truncated: bool,
+
+    /// Worker threads for --mcap (default: one per core). The output is
+    /// the same for any number.
+    #[arg(long, requires = "mcap", value_parser = clap::value_parser!(u64).range(1..=256))]
+    pub(super) threads: Option<u64>,
+
+    /// No progress bar (with --mcap).
+    #[arg(long, short, requires = "mcap")]
+    pub(super) quiet: bool,
 
     /// Families to look for, comma separated.
     #[arg(long, default_value = "ct14,ct8", value_delimiter = ',')]
-    family: Vec<String>,
+    pub(super) family: Vec<String>,
 
-    /// Print one JSON line per image instead of text.
+    /// Print one JSON line per image instead of text (with --mcap: one
+    /// summary line).
     #[arg(long)]
-    json: bool,
+    pub(super) json: bool,
 
     /// Write each image with the detections drawn over it (corners, edges,
     /// ids; estimated corners hollow). With several images the path must
     /// contain '{name}', replaced by each image's file stem.
-    #[arg(long, value_name = "OUT")]
-    draw: Option<PathBuf>,
+    #[arg(long, value_name = "OUT", conflicts_with = "mcap")]
+    pub(super) draw: Option<PathBuf>,
 
     /// Downsampling before the quad search: 1 or 2 (default 2; use 1 for
     /// tags whose data square is under about 40 px).
     #[arg(long, default_value_t = 2)]
-    downsample: u32,
+    pub(super) downsample: u32,
 
     /// Report only four-corner tags (no recovery of hidden corners).
     #[arg(long)]
-    no_occlusion: bool,
+    pub(super) no_occlusion: bool,
 
     /// Focal length x in pixels (pose needs --fx --fy --cx --cy --tag-size).
-    #[arg(long, requires_all = ["fy", "cx", "cy", "tag_size"])]
-    fx: Option<f64>,
+    #[arg(long, requires_all = ["fy", "cx", "cy", "tag_size"], conflicts_with = "mcap")]
+    pub(super) fx: Option<f64>,
     /// Focal length y in pixels.
     #[arg(long, requires = "fx")]
-    fy: Option<f64>,
+    pub(super) fy: Option<f64>,
     /// Principal point x (pixel-centre coordinates).
     #[arg(long, requires = "fx")]
-    cx: Option<f64>,
+    pub(super) cx: Option<f64>,
     /// Principal point y.
     #[arg(long, requires = "fx")]
-    cy: Option<f64>,
-    /// Side of the white data square in metres (half the printed tag size).
-    #[arg(long, requires = "fx")]
-    tag_size: Option<f64>,
+    pub(super) cy: Option<f64>,
+    /// Side of the white data square in metres (half the printed tag
+    /// size). With images it needs --fx --fy --cx --cy; with --mcap, the
+    /// recording's CameraInfo or --camera.
+    #[arg(long, value_parser = positive_metres)]
+    pub(super) tag_size: Option<f64>,
+
+    /// Sides of particular tags' data squares with --mcap, as
+    /// FAMILY:ID=METRES, comma separated (e.g. ct14:42=0.08,ct8:7=0.03);
+    /// they win over --tag-size, and without --tag-size only these tags
+    /// get a pose.
+    #[arg(long, value_delimiter = ',', value_parser = parse_tag_size, requires = "mcap")]
+    pub(super) tag_sizes: Vec<TagSize>,
 }
 
 #[derive(Serialize)]
@@ -84,6 +138,38 @@ struct JsonImage<'a> {
     detections: Vec<JsonDetection<'a>>,
 }
 
+/// One `--tag-sizes` entry.
+#[derive(Debug, Clone)]
+pub(super) struct TagSize {
+    pub(super) family: String,
+    pub(super) id: u64,
+    pub(super) metres: f64,
+}
+
+fn parse_tag_size(s: &str) -> std::result::Result<TagSize, String> {
+    let bad = || format!("'{s}' is not FAMILY:ID=METRES (e.g. ct14:42=0.05)");
+    let (tag, size) = s.split_once('=').ok_or_else(bad)?;
+    let (family, id) = tag.split_once(':').ok_or_else(bad)?;
+    let id: u64 = id.trim().parse().map_err(|_| bad())?;
+    if family.trim().is_empty() {
+        return Err(bad());
+    }
+    Ok(TagSize {
+        family: family.trim().to_string(),
+        id,
+        metres: positive_metres(size.trim())?,
+    })
+}
+
+fn positive_metres(s: &str) -> std::result::Result<f64, String> {
+    let v: f64 = s.parse().map_err(|e| format!("{e}"))?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{s} must be a positive number of metres"))
+    }
+}
+
 /// Runs the subcommand. Every image is processed; unreadable ones are
 /// reported on stderr and make the command fail at the end.
 pub fn run(args: &DetectArgs) -> Result<()> {
@@ -92,6 +178,12 @@ pub fn run(args: &DetectArgs) -> Result<()> {
         recover_occluded: !args.no_occlusion,
         ..DetectorConfig::with_builtin_families(&args.family).context("--family")?
     };
+    if let Some(input) = &args.mcap {
+        return super::detect_bag::run(args, input, config);
+    }
+    if args.tag_size.is_some() && args.fx.is_none() {
+        bail!("--tag-size needs --fx --fy --cx --cy for images (with --mcap, the recording's CameraInfo)");
+    }
     let mut detector = Detector::new(config).context("invalid detector settings")?;
     if let Some(out) = &args.draw {
         if args.images.len() > 1 && !out.to_string_lossy().contains("{name}") {

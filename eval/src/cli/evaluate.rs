@@ -7,6 +7,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::metrics::{evaluate, MatchRule, Summary};
+use coppertag_eval::ros2::stability::{self, Still};
 use coppertag_eval::runlog::RunLog;
 use coppertag_eval::shard;
 use coppertag_eval::truth::Dataset;
@@ -15,18 +16,21 @@ use coppertag_eval::wild_summary::{summarise, WildSummary};
 
 #[derive(Args, Debug)]
 #[command(after_help = "Example:\n  coppertag eval runs/*.mcap -o results/\n  \
-    coppertag eval --wild runs/coppertag-shard-*.mcap -o results/\n\n\
+    coppertag eval --wild runs/coppertag-shard-*.mcap -o results/\n  \
+    coppertag eval --recording tags.mcap --still 2:8 -o results/\n\n\
     Writes results/summary.json (every figure, with per-image outcomes) and results/summary.csv.\n\
     Shard runs (`coppertag run --shard K/N`) of one detector on one dataset are merged first: the\n\
     result is exactly that of the unsharded run. All N shards must be given.\n\
     A run that cannot be read, or whose dataset is gone, is reported and skipped; the others are\n\
     still evaluated and written, and the exit code is 2.")]
 pub struct EvalArgs {
-    /// Run logs (MCAP) from `coppertag run`.
+    /// Run logs (MCAP) from `coppertag run` (with --recording: outputs of
+    /// `coppertag detect --mcap`).
     #[arg(required = true)]
     pub runs: Vec<PathBuf>,
 
-    /// Output directory for summary.json and summary.csv.
+    /// Output directory for summary.json and summary.csv (with
+    /// --recording: stability.json).
     #[arg(short, long, default_value = "results")]
     pub output: PathBuf,
 
@@ -53,6 +57,76 @@ pub struct EvalArgs {
     /// Print the summaries (without per-image rows) as JSON on stdout.
     #[arg(long)]
     pub json: bool,
+
+    /// The files are outputs of `coppertag detect --mcap` (recordings,
+    /// no ground truth): report per tag the frames it was seen in, its
+    /// Reed-Solomon corrections and, with --still, its jitter; writes
+    /// OUTPUT/stability.json.
+    #[arg(long, conflicts_with_all = ["dataset", "wild"])]
+    pub recording: bool,
+
+    /// With --recording: a stretch in which neither the camera nor the
+    /// tags move, FROM:TO in seconds after the first frame; corner and
+    /// pose jitter are measured over it.
+    #[arg(long, requires = "recording", value_parser = parse_still, value_name = "FROM:TO")]
+    pub still: Option<Still>,
+}
+
+fn parse_still(s: &str) -> std::result::Result<Still, String> {
+    let bad = || format!("'{s}' is not FROM:TO seconds (e.g. 2.5:8)");
+    let (a, b) = s.split_once(':').ok_or_else(bad)?;
+    let (from_s, to_s): (f64, f64) = (
+        a.trim().parse().map_err(|_| bad())?,
+        b.trim().parse().map_err(|_| bad())?,
+    );
+    if !(from_s.is_finite() && to_s.is_finite() && from_s >= 0.0 && to_s > from_s) {
+        return Err(format!("{s}: need 0 <= FROM < TO"));
+    }
+    Ok(Still { from_s, to_s })
+}
+
+/// `--recording`: per-tag stability of detect --mcap outputs.
+fn recording(args: &EvalArgs) -> Result<()> {
+    let mut all = BTreeMap::new();
+    for path in &args.runs {
+        let tags = stability::evaluate(path, args.still)?;
+        if !args.json {
+            println!("{}:", path.display());
+            for t in &tags {
+                let jitter = t.jitter.as_ref().map_or(String::new(), |j| {
+                    format!(
+                        "; still ({} frames): corners {:.3} px{}{}",
+                        j.frames,
+                        j.corner_px,
+                        j.translation_mm
+                            .map_or(String::new(), |v| format!(", position {v:.2} mm")),
+                        j.rotation_deg
+                            .map_or(String::new(), |v| format!(", rotation {v:.3} deg")),
+                    )
+                });
+                println!(
+                    "  {} {}: seen in {}/{} frames, corrected in {} (mean {:.2}, max {}){jitter}",
+                    t.family,
+                    t.id,
+                    t.frames_seen,
+                    t.frames,
+                    t.corrected_frames,
+                    t.corrected_mean,
+                    t.corrected_max
+                );
+            }
+        }
+        all.insert(path.display().to_string(), tags);
+    }
+    let doc = serde_json::json!({"still": args.still, "recordings": all});
+    if args.json {
+        println!("{doc}");
+    }
+    write_atomic(
+        &args.output.join("stability.json"),
+        serde_json::to_string_pretty(&doc)?.as_bytes(),
+    )?;
+    Ok(())
 }
 
 /// A run ready to evaluate: its log (a sharded run's shards merged into
@@ -220,6 +294,9 @@ pub fn read_summaries(path: &Path) -> Result<Vec<Summary>> {
 
 /// Runs the subcommand.
 pub fn run(args: &EvalArgs) -> Result<()> {
+    if args.recording {
+        return recording(args);
+    }
     if !(args.match_px.is_finite()
         && args.match_px > 0.0
         && args.match_fraction.is_finite()

@@ -70,6 +70,22 @@ pub struct ReproduceArgs {
     #[arg(long, value_delimiter = ',')]
     pub only: Vec<String>,
 
+    /// Spec directories (among --specs) whose runs are scored for
+    /// detection only: the robustness curves quote no time. Their
+    /// detectors run --jobs sessions at once, each on its own shard of the
+    /// images, put back together exactly as one run (see `coppertag run
+    /// --shard`); the report shows no times for them. Every other run is
+    /// timed one image after another, since sessions running side by side
+    /// slow each other down (on this 2-core machine, our detector's median
+    /// doubled).
+    #[arg(long, num_args = 0.., default_values = ["datasets/robustness"])]
+    pub untimed: Vec<PathBuf>,
+
+    /// Detector sessions at once on the --untimed sets. Default: the number
+    /// of cores.
+    #[arg(long, short = 'j', value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub jobs: Option<u16>,
+
     /// No progress bars.
     #[arg(long, short)]
     pub quiet: bool,
@@ -140,19 +156,26 @@ struct Job {
     spec: PathBuf,
     detectors: Vec<String>,
     wild: bool,
+    /// Scored for detection only: detected with several sessions at once.
+    untimed: bool,
 }
 
 fn jobs(args: &ReproduceArgs) -> Result<Vec<Job>> {
     let wanted = |m: &str| args.only.is_empty() || args.only.iter().any(|o| o == m);
-    let mut out: Vec<Job> = spec_files(&args.specs)?
-        .into_iter()
-        .filter(|s| wanted(&marker_of(s)))
-        .map(|spec| Job {
-            detectors: vec![marker_of(&spec)],
-            spec,
-            wild: false,
-        })
-        .collect();
+    let mut out = Vec::new();
+    for dir in &args.specs {
+        let untimed = args.untimed.contains(dir);
+        for spec in spec_files(std::slice::from_ref(dir))? {
+            if wanted(&marker_of(&spec)) {
+                out.push(Job {
+                    detectors: vec![marker_of(&spec)],
+                    spec,
+                    wild: false,
+                    untimed,
+                });
+            }
+        }
+    }
     for spec in spec_files(std::slice::from_ref(&args.wild))? {
         let marker = marker_of(&spec);
         let detectors: Vec<String> = if runner::KNOWN.contains(&marker.as_str()) {
@@ -166,6 +189,7 @@ fn jobs(args: &ReproduceArgs) -> Result<Vec<Job>> {
                 spec,
                 detectors,
                 wild: true,
+                untimed: false,
             });
         }
     }
@@ -179,6 +203,10 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
         anyhow::bail!("no dataset specs found in {:?}", args.specs);
     }
     let every = if args.quick { 10 } else { 1 };
+    let workers = args.jobs.map_or_else(
+        || std::thread::available_parallelism().map_or(1, |n| n.get()),
+        usize::from,
+    );
     let mut failures = Vec::new();
     let mut runs = Vec::new();
     let mut wild_runs = Vec::new();
@@ -259,7 +287,10 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
                         &format!("{label} detect {marker}"),
                         args.quiet,
                     );
-                    let out = runner::run(&detector, &ds, |d, _| pb.set_position(d as u64));
+                    let sessions = if job.untimed { workers } else { 1 };
+                    let out = runner::run_parallel(&detector, &ds, sessions, |d, _| {
+                        pb.set_position(d as u64)
+                    });
                     pb.finish_and_clear();
                     let out = out?;
                     let path = args.work.join("runs").join(format!("{run_name}.mcap"));

@@ -68,6 +68,23 @@ pub struct SynthArgs {
     /// No progress bar.
     #[arg(long, short)]
     pub quiet: bool,
+
+    /// `ros2` also writes the dataset as a rosbag2 MCAP file,
+    /// <dir>/dataset.ros2.mcap (sensor_msgs/msg/Image mono8 on
+    /// /camera/image_raw, CameraInfo on /camera/camera_info, the ground
+    /// truth as JSON in std_msgs/msg/String on /ground_truth), to replay
+    /// into a ROS 2 detector node (`ros2 bag play`).
+    #[arg(long, value_enum, default_value_t = Format::Files)]
+    pub format: Format,
+}
+
+/// What `coppertag synth` writes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Format {
+    /// PNG images, truth.csv, dataset.json and dataset.mcap (Foxglove).
+    Files,
+    /// All of those and dataset.ros2.mcap (rosbag2).
+    Ros2,
 }
 
 fn parse_shard(s: &str) -> std::result::Result<Shard, String> {
@@ -113,16 +130,14 @@ pub fn run(args: &SynthArgs) -> Result<()> {
             bar.set_position(done as u64)
         })
     };
-    let report = match args.threads {
-        Some(n) => rayon::ThreadPoolBuilder::new()
-            .num_threads(n as usize)
-            .build()
-            .context("cannot start worker threads")?
-            .install(work),
-        None => work(),
-    }
-    .with_context(|| format!("cannot render {}", args.spec.display()))?;
+    let report = super::with_threads(args.threads, work)?
+        .with_context(|| format!("cannot render {}", args.spec.display()))?;
     bar.finish_and_clear();
+    if args.format == Format::Ros2 {
+        use coppertag_eval::ros2::dataset_bag;
+        let bag = dataset_bag::from_dataset_mcap(&report.dir.join("dataset.mcap"))?;
+        coppertag_eval::atomic::write_atomic(&report.dir.join(dataset_bag::FILE_NAME), &bag)?;
+    }
     if !args.quiet {
         eprintln!(
             "{}: {} images in {:.1} s ({:.1} images/s) -> {}",
