@@ -54,6 +54,13 @@ pub(crate) struct Found {
     rivals: usize,
 }
 
+impl Found {
+    /// The tag's reading.
+    pub(crate) fn detection(&self) -> &Detection {
+        &self.det
+    }
+}
+
 /// Refines and decodes `candidates` (best first, working-image coordinates
 /// scaled by `scale`) on the full-resolution `img`. Candidates whose centre
 /// falls inside a tag already read cleanly are skipped. Returns the tags
