@@ -62,6 +62,11 @@ class Detection:
     def estimated(self) -> Tuple[bool, bool, bool, bool]:
         """Per corner (TL, BL, BR, TR): hidden and estimated rather than measured."""
     @property
+    def corner_sigma(self) -> Optional[Tuple[float, float, float, float]]:
+        """Per corner (TL, BL, BR, TR): one-sigma uncertainty in pixels from the fit
+        of the tag's own model to its visible edges; None when the tag was too small
+        or too hidden for that fit."""
+    @property
     def corrected(self) -> int:
         """Reed-Solomon symbols corrected while decoding (0: a clean read)."""
     @property
@@ -111,6 +116,7 @@ class Detector:
         edge_max_angle_deg: float = 20.0,
         recover_occluded: bool = True,
         refine_corners: bool = True,
+        small_tags: bool = True,
         max_candidates: int = 400,
     ) -> None: ...
     def detect(self, image: npt.NDArray[np.uint8]) -> list[Detection]:

@@ -8,6 +8,7 @@
 //! all white, and it tells how far each cell is from the threshold, so that
 //! doubtful cells become Reed-Solomon erasures instead of errors.
 
+use crate::deblur::deblur;
 use crate::math::sample_bilinear;
 use crate::view::GrayView;
 
@@ -152,22 +153,64 @@ pub fn decode_quad_with(
     if contrast < params.min_contrast {
         return None;
     }
-    let threshold = 0.5 * (s.white + s.black);
-    let bits: Vec<bool> = s.cells.iter().map(|&v| v < threshold).collect();
-    let reading = decode_cells(family, &bits, &[]).or_else(|| {
-        // Second chance: doubtful cells are erased.
-        let doubtful: Vec<bool> = s
-            .cells
+    // Cells as whiteness: 0 at the frame's black, 1 at the margin's white.
+    let y: Vec<f64> = s.cells.iter().map(|v| (v - s.black) / contrast).collect();
+    let reading = read_cells(family, &y, params.erase_fraction).or_else(|| {
+        // Third chance, for a blurred tag only: undo the blur in cell
+        // space, at the assumed width that leaves the fewest grey cells.
+        if !blurred(&y) {
+            return None;
+        }
+        let x = DEBLUR_SIGMAS
             .iter()
-            .map(|&v| (v - threshold).abs() < params.erase_fraction * contrast)
+            .filter_map(|&sg| deblur(&y, n, sg))
+            .min_by_key(|x| mid_band(x))?;
+        read_cells(family, &x, params.erase_fraction)
+    })?;
+    Some(reading_to_quad(reading, corners, contrast))
+}
+
+/// Blur widths (cells, Gaussian sigma) considered when the plain reading
+/// of a blurred tag fails, from where isolated cells start to fade to
+/// where neighbours weigh nearly as much as the cell itself; the one whose
+/// deblurred cells are least grey is read.
+const DEBLUR_SIGMAS: [f64; 3] = [0.45, 0.6, 0.75];
+
+/// A tag looks blurred when at least this share of its cells sample in
+/// the middle band ([`MID_BAND`]) between black and white: sharp cells
+/// sample near 0 or 1.
+const BLURRED_SHARE: f64 = 0.2;
+
+/// Half-width of the middle band of whiteness (around 0.5).
+const MID_BAND: f64 = 0.25;
+
+/// Cells of whiteness `y` in the middle band ([`MID_BAND`]).
+fn mid_band(y: &[f64]) -> usize {
+    y.iter().filter(|v| (*v - 0.5).abs() < MID_BAND).count()
+}
+
+/// Whether the cells' whiteness `y` looks blurred ([`BLURRED_SHARE`]).
+fn blurred(y: &[f64]) -> bool {
+    mid_band(y) as f64 >= BLURRED_SHARE * y.len() as f64
+}
+
+/// Reads cells of whiteness `x` (0 black, 1 white) thresholded at a half;
+/// second chance with the cells within `erase_fraction` of the threshold
+/// erased.
+fn read_cells(family: &Family, x: &[f64], erase_fraction: f64) -> Option<GridReading> {
+    let bits: Vec<bool> = x.iter().map(|&v| v < 0.5).collect();
+    decode_cells(family, &bits, &[]).or_else(|| {
+        // Second chance: doubtful cells are erased.
+        let doubtful: Vec<bool> = x
+            .iter()
+            .map(|&v| (v - 0.5).abs() < erase_fraction)
             .collect();
         doubtful
             .iter()
             .any(|&d| d)
             .then(|| decode_cells(family, &bits, &doubtful))
             .flatten()
-    })?;
-    Some(reading_to_quad(reading, corners, contrast))
+    })
 }
 
 fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> QuadReading {

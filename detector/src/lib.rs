@@ -11,6 +11,7 @@
 //! the printed id; metres and radians in files.
 #![deny(missing_docs)]
 
+mod deblur;
 pub mod decode;
 pub mod detect;
 pub mod digits;

@@ -96,6 +96,31 @@ impl<'a> GrayView<'a> {
         &self.data[start..start + self.width as usize]
     }
 
+    /// The `w` x `h` rectangle whose top-left pixel is `(x0, y0)`, clipped
+    /// to the image: a view of the same bytes, no copy.
+    pub(crate) fn crop(&self, x0: u32, y0: u32, w: u32, h: u32) -> GrayView<'a> {
+        let x0 = x0.min(self.width);
+        let y0 = y0.min(self.height);
+        let w = w.min(self.width - x0);
+        let h = h.min(self.height - y0);
+        if w == 0 || h == 0 {
+            return GrayView {
+                data: &[],
+                width: 0,
+                height: 0,
+                stride: 0,
+            };
+        }
+        let start = y0 as usize * self.stride + x0 as usize;
+        let end = start + (h as usize - 1) * self.stride + w as usize;
+        GrayView {
+            data: &self.data[start..end],
+            width: w,
+            height: h,
+            stride: self.stride,
+        }
+    }
+
     /// The grey level at `(x, y)`, `None` outside the image.
     #[inline]
     pub fn get(&self, x: u32, y: u32) -> Option<u8> {
@@ -137,5 +162,19 @@ mod tests {
         assert_eq!(v.get(1, 1), Some(4));
         assert_eq!(v.get(2, 0), None);
         assert_eq!(v.row(1), &[3, 4]);
+    }
+
+    #[test]
+    fn crops_share_the_bytes_and_clip_to_the_image() {
+        let data: Vec<u8> = (0..20).collect();
+        let v = GrayView::new(&data, 4, 4, 5).unwrap();
+        let c = v.crop(1, 2, 2, 2);
+        assert_eq!((c.width(), c.height(), c.stride()), (2, 2, 5));
+        assert_eq!(c.row(0), &[11, 12]);
+        assert_eq!(c.row(1), &[16, 17]);
+        let c = v.crop(3, 3, 10, 10);
+        assert_eq!((c.width(), c.height()), (1, 1));
+        assert_eq!(c.get(0, 0), Some(18));
+        assert_eq!(v.crop(4, 0, 2, 2).width(), 0);
     }
 }

@@ -221,8 +221,9 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
          translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
          images. Minimum size: the smallest bin of the marker's side in pixels with at least {:.0}% found. \
          Every system runs with its library's default settings, as in the sets above (a new user's first \
-         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search, which costs \
-         markers under about 40 px).\n",
+         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search; \
+         CopperTag then looks again at full resolution around disc rims too small to read at half \
+         size).\n",
         if w.datasets.is_empty() {
             "none".into()
         } else {

@@ -57,6 +57,14 @@ impl Detection {
         (e[0], e[1], e[2], e[3])
     }
 
+    /// One-sigma uncertainty of each corner (TL, BL, BR, TR) in pixels,
+    /// from the fit of the tag's own model to its visible edges; None when
+    /// the tag was too small or too hidden for that fit.
+    #[getter]
+    fn corner_sigma(&self) -> Option<(f64, f64, f64, f64)> {
+        self.inner.corner_sigma.map(|s| (s[0], s[1], s[2], s[3]))
+    }
+
     /// Reed-Solomon symbols corrected while decoding (0 for a clean read);
     /// filter on it for confidence.
     #[getter]

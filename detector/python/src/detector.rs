@@ -63,7 +63,7 @@ impl Detector {
 
     /// Per-stage times of the last detect() call, in seconds: a dict from
     /// stage name (pipeline order: downsample, threshold, contours, lines,
-    /// corners, ellipses, quads, decode, dedup) to time, then "total".
+    /// corners, ellipses, quads, decode, dedup, verify) to time, then "total".
     /// All zero before the first call.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {

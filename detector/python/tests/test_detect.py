@@ -39,6 +39,7 @@ def test_same_detections_as_the_cli(path, detector, rust_detections) -> None:
         assert np.abs(d.corners - np.array(e["corners"])).max() <= CORNER_TOL_PX
         assert list(d.estimated) == e["estimated"]
         assert d.corrected == e["corrected"]
+        assert d.corner_sigma == pytest.approx(tuple(e["corner_sigma"]), abs=CORNER_TOL_PX)
         best, alternative = d.pose(1000.0, 1000.0, 511.5, 511.5, 0.05)
         for ours, theirs in ((best, e["pose"]["best"]), (alternative, e["pose"]["alternative"])):
             assert np.abs(ours.rotation - np.array(theirs["rotation"])).max() <= POSE_TOL
@@ -52,6 +53,9 @@ def test_detection_fields(detector) -> None:
     # The fixtures' data square corners sit at 255.5 and 768.5 (README).
     np.testing.assert_allclose(d.corners, [[255.5, 255.5], [255.5, 768.5], [768.5, 768.5], [768.5, 255.5]], atol=0.05)
     assert d.center == pytest.approx((512.0, 512.0), abs=0.05)
+    # A sharp, whole 513 px tag: every corner measured, to a tenth of a pixel
+    # or so (the floor of the uncertainty is 0.1 px).
+    assert d.corner_sigma is not None and all(0.1 <= s < 0.5 for s in d.corner_sigma)
     h = d.homography
     assert h.shape == (3, 3)
     # The homography maps tag units (corner TL = (-0.5, -0.5)) onto the corners.
@@ -164,6 +168,6 @@ def test_stats_per_stage(detector) -> None:
     detector.detect(read_grey(fixture_paths()[0]))
     stats = detector.stats
     assert list(stats) == ["downsample", "threshold", "contours", "lines", "corners", "ellipses",
-                           "quads", "decode", "dedup", "total"]
+                           "quads", "decode", "small", "dedup", "verify", "total"]
     assert stats["total"] > 0
     assert sum(v for k, v in stats.items() if k != "total") <= stats["total"] * 1.0001

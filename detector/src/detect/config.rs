@@ -80,7 +80,8 @@ pub struct DetectorConfig {
     pub families: Vec<FamilySetting>,
     /// Downsampling factor before segmentation: 1 (none) or 2. Quads are
     /// found on the reduced image, refined and decoded on the full one.
-    /// Default 2; use 1 when data squares are smaller than about 40 px.
+    /// Default 2: small tags are then looked at again at full resolution
+    /// (`small_tags`); 1 segments the whole frame at full resolution.
     pub downsample: u32,
     /// Radius of the adaptive threshold window (working px); the window is
     /// `2 r + 1` pixels square. Default 10. Larger copes with bigger tags
@@ -120,6 +121,12 @@ pub struct DetectorConfig {
     /// Refine corners to sub-pixel accuracy at full resolution. Default
     /// true.
     pub refine_corners: bool,
+    /// With `downsample` 2: look again at full resolution around every
+    /// disc rim of a tag too small to read at half size (data square under
+    /// 64 px) that no detection explains. Default true. Finds data squares
+    /// down to about 20 px at a fraction of the cost of `downsample` 1;
+    /// false saves that time on frames with small round clutter.
+    pub small_tags: bool,
     /// Cap on candidate quads decoded per frame (bounds the time spent on
     /// cluttered frames). Default 400.
     pub max_candidates: usize,
@@ -146,6 +153,7 @@ impl Default for DetectorConfig {
             edge_max_angle_deg: 20.0,
             recover_occluded: true,
             refine_corners: true,
+            small_tags: true,
             max_candidates: 400,
         }
     }

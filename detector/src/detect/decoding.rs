@@ -11,12 +11,13 @@
 
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch};
+use super::verify::{verify, Verdict};
 use super::Detection;
 use crate::decode::{decode_quad_with, DecodeParams};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
-use crate::math::{inside, to_full};
+use crate::math::{inside, norm, sub, to_full};
 use crate::view::GrayView;
 
 /// Default of [`DecodingParams::max_rivals`].
@@ -51,6 +52,13 @@ pub(crate) struct Target {
 pub(crate) struct Found {
     det: Detection,
     rivals: usize,
+}
+
+impl Found {
+    /// The tag's reading.
+    pub(crate) fn detection(&self) -> &Detection {
+        &self.det
+    }
 }
 
 /// Refines and decodes `candidates` (best first, working-image coordinates
@@ -143,6 +151,7 @@ fn read(
             id: r.id,
             corners: r.corners,
             estimated,
+            corner_sigma: None,
             corrected: r.corrected,
             center,
             contrast: r.contrast,
@@ -171,6 +180,75 @@ pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
         }
     }
     out.sort_by(|a, b| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
+    out
+}
+
+/// A fitted model replaces a detection's corners only when it moves one of
+/// them by more than `KEEP_MOVE_PX` px or `KEEP_MOVE_SIDE` of the side
+/// (the larger): such a move undoes a corner taken where an occluder's
+/// edge continues a side. Smaller moves keep the sides' intersections,
+/// which on large, sharp tags are the more accurate (the model fit carries
+/// a bias of a few tenths of a pixel on 500 px tags, not yet understood).
+const KEEP_MOVE_PX: f64 = 1.0;
+/// See [`KEEP_MOVE_PX`].
+const KEEP_MOVE_SIDE: f64 = 0.02;
+
+/// Each detection verified against its own tag's model ([`verify`]):
+/// uncertainties and estimated flags from the fit, corners from it where
+/// it moves them far ([`KEEP_MOVE_PX`]), or the detection dropped when the
+/// fit contradicts its cells. Detections the fit cannot judge (too small,
+/// too hidden) stay as they are.
+pub(crate) fn verify_all(
+    img: &GrayView<'_>,
+    found: Vec<Detection>,
+    targets: &[Target],
+    p: &DecodingParams,
+) -> Vec<Detection> {
+    let mut out = Vec::with_capacity(found.len());
+    for mut d in found {
+        let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
+            out.push(d);
+            continue;
+        };
+        match verify(
+            img,
+            &t.family,
+            d.id,
+            &d.corners,
+            d.contrast,
+            d.corrected,
+            &p.decode,
+        ) {
+            Verdict::Fitted(v) => {
+                let side = (0..4)
+                    .map(|k| norm(sub(d.corners[(k + 1) % 4], d.corners[k])))
+                    .sum::<f64>()
+                    / 4.0;
+                let moved = (0..4)
+                    .map(|k| norm(sub(v.corners[k], d.corners[k])))
+                    .fold(0.0, f64::max);
+                let mut sigma = v.sigma;
+                if moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * side) {
+                    d.corners = v.corners;
+                    d.center = v.homography.map([0.0, 0.0]).unwrap_or(d.center);
+                    d.homography = v.homography;
+                } else {
+                    // The kept corner is uncertain by the fit's own sigma
+                    // and by how far the fit puts it.
+                    for (k, sg) in sigma.iter_mut().enumerate() {
+                        *sg = sg.hypot(norm(sub(v.corners[k], d.corners[k])));
+                    }
+                }
+                for (e, u) in d.estimated.iter_mut().zip(v.unsupported) {
+                    *e |= u;
+                }
+                d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
+                out.push(d);
+            }
+            Verdict::Unfit => out.push(d),
+            Verdict::Contradicted => {}
+        }
+    }
     out
 }
 

@@ -17,7 +17,12 @@
 //!    edge pieces its corners were seen on;
 //! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
 //!    then [`crate::decode_quad_with`] at full resolution, rival readings of
-//!    one tag, one detection per tag.
+//!    one tag; `small`: when the image was downsampled, stages 1-6 again
+//!    at full resolution in the regions around disc rims too small to
+//!    decode at half size; then one detection per tag;
+//! 7. `verify`: the decoded tag's own model (margin, cell edges) re-fits
+//!    each detection's homography with robust weights, gives each corner
+//!    an uncertainty and drops readings the fit contradicts.
 //!
 //! Every threshold is either a [`DetectorConfig`] setting or a named,
 //! documented constant of its stage module; the stage parameter structs are
@@ -34,7 +39,9 @@ pub(crate) mod ellipses;
 pub(crate) mod lines;
 pub(crate) mod quads;
 pub(crate) mod refine;
+pub(crate) mod small;
 pub(crate) mod threshold;
+pub(crate) mod verify;
 
 use std::time::{Duration, Instant};
 
@@ -58,8 +65,14 @@ pub struct Detection {
     /// input image); corner 0 is always the tag's physical top-left.
     pub corners: [[f64; 2]; 4],
     /// Which corners were estimated (hidden, recovered from the other
-    /// corners' lines or the tag centre) rather than measured.
+    /// corners' lines or the tag centre, or with no visible edge of the
+    /// tag near them) rather than measured.
     pub estimated: [bool; 4],
+    /// One-sigma uncertainty of each corner (px, radial: the root of the
+    /// trace of its 2 x 2 covariance), from the fit of the tag's model to
+    /// its visible edges; `None` when the tag was too small or too hidden
+    /// for that fit and its corners are the side lines' intersections.
+    pub corner_sigma: Option<[f64; 4]>,
     /// Reed-Solomon symbols corrected while decoding: 0 for a clean read;
     /// filter on it for confidence.
     pub corrected: usize,
@@ -91,8 +104,14 @@ pub struct StageTimes {
     pub quads: Duration,
     /// Refinement and decoding.
     pub decode: Duration,
+    /// The full-resolution second look around small disc rims (its own
+    /// segmentation, refinement and decoding; see
+    /// [`DetectorConfig::small_tags`]).
+    pub small: Duration,
     /// One detection per tag, sorted.
     pub dedup: Duration,
+    /// Model fit of each detection.
+    pub verify: Duration,
     /// Whole frame.
     pub total: Duration,
 }
@@ -109,7 +128,9 @@ impl StageTimes {
             ("ellipses", self.ellipses),
             ("quads", self.quads),
             ("decode", self.decode),
+            ("small", self.small),
             ("dedup", self.dedup),
+            ("verify", self.verify),
             ("total", self.total),
         ]
         .into_iter()
@@ -136,8 +157,10 @@ pub struct DetectionStats {
     /// Candidate quads after de-duplication.
     pub candidates: usize,
     /// Candidates refined and decoded (the rest were inside a tag already
-    /// found or over the cap).
+    /// found or over the cap), both passes.
     pub decode_attempts: usize,
+    /// Regions around small disc rims segmented again at full resolution.
+    pub small_regions: usize,
     /// Tags reported.
     pub detections: usize,
 }
@@ -209,6 +232,13 @@ impl StageParams {
 #[derive(Debug, Default)]
 struct Workspace {
     small: Vec<u8>,
+    seg: Segmentation,
+    rscratch: refine::RefineScratch,
+}
+
+/// The buffers of stages 1-5, from the working image to candidate quads.
+#[derive(Debug, Default)]
+struct Segmentation {
     colsum: Vec<u32>,
     binary: Vec<u8>,
     contours: contours::Contours,
@@ -218,7 +248,48 @@ struct Workspace {
     escratch: ellipses::EllipseScratch,
     candidates: Vec<quads::Candidate>,
     qscratch: quads::QuadScratch,
-    rscratch: refine::RefineScratch,
+}
+
+impl Segmentation {
+    /// Stages 1 (threshold) to 5 (candidate quads) on the working image
+    /// `work`; the candidates are left in `self.candidates`, each stage's
+    /// time added to `times`.
+    fn run(&mut self, work: &GrayView<'_>, p: &StageParams, times: &mut StageTimes) {
+        let mut laps = Laps(Instant::now());
+        threshold::threshold(work, &p.threshold, &mut self.colsum, &mut self.binary);
+        times.threshold += laps.lap();
+        let (ww, wh) = (work.width() as usize, work.height() as usize);
+        contours::find_contours(
+            &mut self.binary,
+            ww + 2,
+            wh + 2,
+            p.min_contour_points,
+            contours::max_border_len(ww, wh),
+            &mut self.contours,
+        );
+        times.contours += laps.lap();
+        lines::extract(&self.contours, &p.lines, &mut self.polys);
+        times.lines += laps.lap();
+        corners::find_corners(&self.polys, &p.corners, &mut self.corners);
+        times.corners += laps.lap();
+        ellipses::find_ellipses(
+            &self.contours,
+            &self.polys,
+            &p.ellipses,
+            &mut self.escratch,
+            &mut self.ellipses,
+        );
+        ellipses::find_anchors(&self.contours, &mut self.ellipses);
+        times.ellipses += laps.lap();
+        quads::find_candidates(
+            &self.corners,
+            &self.ellipses,
+            &p.quads,
+            &mut self.qscratch,
+            &mut self.candidates,
+        );
+        times.quads += laps.lap();
+    }
 }
 
 /// Stage stopwatch: each [`Laps::lap`] returns the time since the last.
@@ -258,6 +329,8 @@ impl Laps {
 pub struct Detector {
     config: DetectorConfig,
     params: StageParams,
+    /// `params` at full resolution, for the small-tag regions.
+    full_params: StageParams,
     targets: Vec<decoding::Target>,
     ws: Workspace,
     stats: DetectionStats,
@@ -275,8 +348,13 @@ impl Detector {
                 max_corrected: f.correction_limit(),
             })
             .collect();
+        let full = DetectorConfig {
+            downsample: 1,
+            ..config.clone()
+        };
         Ok(Self {
             params: StageParams::new(&config),
+            full_params: StageParams::new(&full),
             config,
             targets,
             ws: Workspace::default(),
@@ -309,56 +387,69 @@ impl Detector {
         };
         let (work, scale) = threshold::working_image(img, &p.threshold, &mut ws.small);
         st.times.downsample = laps.lap();
-        threshold::threshold(&work, &p.threshold, &mut ws.colsum, &mut ws.binary);
-        st.times.threshold = laps.lap();
-        let (ww, wh) = (work.width() as usize, work.height() as usize);
-        contours::find_contours(
-            &mut ws.binary,
-            ww + 2,
-            wh + 2,
-            p.min_contour_points,
-            contours::max_border_len(ww, wh),
-            &mut ws.contours,
+        ws.seg.run(&work, p, &mut st.times);
+        let seg = &ws.seg;
+        (
+            st.contours,
+            st.lines,
+            st.corners,
+            st.ellipses,
+            st.candidates,
+        ) = (
+            seg.contours.list.len(),
+            seg.polys.lines.len(),
+            seg.corners.len(),
+            seg.ellipses.len(),
+            seg.candidates.len(),
         );
-        st.times.contours = laps.lap();
-        lines::extract(&ws.contours, &p.lines, &mut ws.polys);
-        st.times.lines = laps.lap();
-        corners::find_corners(&ws.polys, &p.corners, &mut ws.corners);
-        st.times.corners = laps.lap();
-        ellipses::find_ellipses(
-            &ws.contours,
-            &ws.polys,
-            &p.ellipses,
-            &mut ws.escratch,
-            &mut ws.ellipses,
-        );
-        ellipses::find_anchors(&ws.contours, &mut ws.ellipses);
-        st.times.ellipses = laps.lap();
-        quads::find_candidates(
-            &ws.corners,
-            &ws.ellipses,
-            &p.quads,
-            &mut ws.qscratch,
-            &mut ws.candidates,
-        );
-        st.times.quads = laps.lap();
-        let (found, attempts) = decoding::decode_candidates(
+        laps.lap();
+        let (mut found, mut attempts) = decoding::decode_candidates(
             &img,
-            &ws.candidates,
+            &ws.seg.candidates,
             scale,
             &self.targets,
             &p.decoding,
             &mut ws.rscratch,
         );
         st.times.decode = laps.lap();
+        if self.config.small_tags && scale > 1.0 {
+            let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
+            let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
+            st.small_regions = regions.len();
+            // The regions' own stage times are not split out: they are
+            // the `small` stage.
+            let mut inner = StageTimes::default();
+            for r in regions {
+                let view = img.crop(r.x0, r.y0, r.w, r.h);
+                ws.seg.run(&view, &self.full_params, &mut inner);
+                let shifted: Vec<quads::Candidate> = ws
+                    .seg
+                    .candidates
+                    .iter()
+                    .filter_map(|c| small::of_rim(c, &r))
+                    .collect();
+                let budget = p.decoding.max_attempts.saturating_sub(attempts);
+                let (more, n) = decoding::decode_candidates(
+                    &img,
+                    &shifted,
+                    1.0,
+                    &self.targets,
+                    &decoding::DecodingParams {
+                        max_attempts: budget,
+                        ..p.decoding
+                    },
+                    &mut ws.rscratch,
+                );
+                attempts += n;
+                found.extend(more);
+            }
+            st.times.small = laps.lap();
+        }
         let out = decoding::one_per_tag(found);
         st.times.dedup = laps.lap();
+        let out = decoding::verify_all(&img, out, &self.targets, &p.decoding);
+        st.times.verify = laps.lap();
         st.decode_attempts = attempts;
-        st.contours = ws.contours.list.len();
-        st.lines = ws.polys.lines.len();
-        st.corners = ws.corners.len();
-        st.ellipses = ws.ellipses.len();
-        st.candidates = ws.candidates.len();
         st.detections = out.len();
         st.times.total = t0.elapsed();
         self.stats = st;

@@ -83,14 +83,26 @@ pub struct DetectArgs {
     #[arg(long, value_name = "OUT", conflicts_with = "mcap")]
     pub(super) draw: Option<PathBuf>,
 
-    /// Downsampling before the quad search: 1 or 2 (default 2; use 1 for
-    /// tags whose data square is under about 40 px).
+    /// Downsampling before the quad search: 1 or 2 (default 2: small tags
+    /// are looked at again at full resolution, see --no-small-tags; 1
+    /// searches the whole frame at full resolution).
     #[arg(long, default_value_t = 2)]
     pub(super) downsample: u32,
 
     /// Report only four-corner tags (no recovery of hidden corners).
     #[arg(long)]
     pub(super) no_occlusion: bool,
+
+    /// No second, full-resolution look around disc rims too small to read
+    /// on the downsampled image (faster on frames with much small round
+    /// clutter; loses data squares under about 40 px).
+    #[arg(long)]
+    pub(super) no_small_tags: bool,
+
+    /// With --json: add each image's stage times (ms) and counts (borders,
+    /// lines, corners, rims, candidates, decodes, small-tag regions).
+    #[arg(long, requires = "json")]
+    pub(super) stats: bool,
 
     /// Focal length x in pixels (pose needs --fx --fy --cx --cy --tag-size).
     #[arg(long, requires_all = ["fy", "cx", "cy", "tag_size"], conflicts_with = "mcap")]
@@ -124,6 +136,8 @@ struct JsonDetection<'a> {
     id: u64,
     corners: [[f64; 2]; 4],
     estimated: [bool; 4],
+    /// One-sigma corner uncertainty (px), null when the tag was not fitted.
+    corner_sigma: Option<[f64; 4]>,
     corrected: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<TagPose>,
@@ -134,6 +148,8 @@ struct JsonImage<'a> {
     image: &'a str,
     ms: f64,
     detections: Vec<JsonDetection<'a>>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    stats: Option<serde_json::Value>,
 }
 
 /// One `--tag-sizes` entry.
@@ -174,6 +190,7 @@ pub fn run(args: &DetectArgs) -> Result<()> {
     let config = DetectorConfig {
         downsample: args.downsample,
         recover_occluded: !args.no_occlusion,
+        small_tags: !args.no_small_tags,
         ..DetectorConfig::with_builtin_families(&args.family).context("--family")?
     };
     if let Some(input) = &args.mcap {
@@ -213,6 +230,25 @@ pub fn run(args: &DetectArgs) -> Result<()> {
     Ok(())
 }
 
+/// `--stats`: the detector's counts, and its stage times in ms.
+fn stats_json(st: &coppertag::DetectionStats) -> serde_json::Value {
+    let times: serde_json::Map<String, serde_json::Value> = st
+        .times
+        .iter()
+        .map(|(name, d)| (name.to_string(), (d.as_secs_f64() * 1e3).into()))
+        .collect();
+    serde_json::json!({
+        "times_ms": times,
+        "contours": st.contours,
+        "lines": st.lines,
+        "corners": st.corners,
+        "ellipses": st.ellipses,
+        "candidates": st.candidates,
+        "decode_attempts": st.decode_attempts,
+        "small_regions": st.small_regions,
+    })
+}
+
 fn one_image(
     args: &DetectArgs,
     detector: &mut Detector,
@@ -245,10 +281,12 @@ fn one_image(
                     id: d.id,
                     corners: d.corners,
                     estimated: d.estimated,
+                    corner_sigma: d.corner_sigma,
                     corrected: d.corrected,
                     pose: *p,
                 })
                 .collect(),
+            stats: args.stats.then(|| stats_json(detector.stats())),
         };
         println!("{}", serde_json::to_string(&line)?);
     } else {

@@ -1,0 +1,141 @@
+//! Small tags at the default (downsampled) settings: the full-resolution
+//! look around small disc rims (`DetectorConfig::small_tags`) must find
+//! data squares of 22-40 px that the downsampled pass alone loses, with the
+//! right ids and sub-pixel corners, and must not touch large tags.
+
+mod common;
+
+use common::*;
+use coppertag::{Detector, DetectorConfig, Family};
+
+/// One tag of `family` with a data square of about `side_px` px, tilted,
+/// somewhere in a 640 x 480 frame (the wild benchmark's VGA camera).
+fn scene(family: &'static Family, id: u64, side_px: f64, rng: &mut Rng) -> Scene {
+    let d = CAMERA.f * TAG_SIDE_M / side_px;
+    let r = rotation(
+        rng.range(-0.5, 0.5),
+        rng.range(-0.5, 0.5),
+        rng.range(0.0, std::f64::consts::TAU),
+    );
+    let h = CAMERA.homography(&r, [0.0, 0.0, d], TAG_SIDE_M);
+    let (w, hh) = (640u32, 480u32);
+    // Anywhere the whole tag (twice the data square) stays in the frame.
+    let (px, py) = (
+        rng.range(2.0 * side_px, f64::from(w) - 2.0 * side_px),
+        rng.range(2.0 * side_px, f64::from(hh) - 2.0 * side_px),
+    );
+    let shift = nalgebra::Matrix3::new(
+        1.0,
+        0.0,
+        px - CAMERA.cx(),
+        0.0,
+        1.0,
+        py - CAMERA.cy(),
+        0.0,
+        0.0,
+        1.0,
+    );
+    let h = coppertag::homography::Homography::from_matrix(shift * h.matrix());
+    let mut s = Scene::new(family, id, w, hh, h);
+    s.blur = 0.5;
+    s.noise = 2.0;
+    s.seed = rng.next_u64();
+    s
+}
+
+/// Found share of 24 small tags (ct14 22-40 px, ct8 20-32 px) with
+/// `small_tags` on and off; every detection must have the right id and
+/// corners within 1 px.
+fn found_share(small_tags: bool) -> f64 {
+    let mut det = Detector::new(DetectorConfig {
+        small_tags,
+        ..DetectorConfig::default()
+    })
+    .unwrap();
+    let mut rng = Rng::new(5);
+    let mut found = 0;
+    let total = 24;
+    for k in 0..total {
+        let (family, side) = if k % 3 == 2 {
+            (Family::ct8(), rng.range(20.0, 32.0))
+        } else {
+            (Family::ct14(), rng.range(22.0, 40.0))
+        };
+        let id = rng.next_u64() % 256;
+        let s = scene(family, id, side, &mut rng);
+        let out = det.detect(&s.render());
+        assert!(out.len() <= 1, "scene {k}: {out:?}");
+        for d in &out {
+            assert_eq!((d.family.as_str(), d.id), (family.name(), id), "scene {k}");
+            let err = corner_errors(&d.corners, &s.corners())
+                .into_iter()
+                .fold(0.0, f64::max);
+            assert!(
+                err <= 1.0,
+                "scene {k} ({side:.1} px): corner {err:.2} px off"
+            );
+            found += 1;
+        }
+    }
+    f64::from(found) / f64::from(total)
+}
+
+#[test]
+fn small_tags_are_found_at_the_default_downsampling() {
+    let with = found_share(true);
+    let without = found_share(false);
+    eprintln!("small tags found: {with:.2} with the full-resolution look, {without:.2} without");
+    assert!(with >= 0.9, "only {with:.2} of the small tags found");
+    assert!(
+        with >= without + 0.3,
+        "the full-resolution look adds little: {with:.2} against {without:.2}"
+    );
+}
+
+#[test]
+fn a_large_tag_needs_no_second_look() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(9);
+    let s = scene(Family::ct14(), 77, 120.0, &mut rng);
+    let out = det.detect(&s.render());
+    assert_eq!(out.len(), 1);
+    assert_eq!(det.stats().small_regions, 0, "{:?}", det.stats());
+}
+
+/// A defocused tag whose cells have faded into each other (blur sigma
+/// 0.4-0.55 of a cell): the plain reading fails, the deblurred one must
+/// read it (the defocus challenge set's far end).
+#[test]
+fn defocused_tags_are_read() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(21);
+    let mut found = 0;
+    let total = 6;
+    for k in 0..total {
+        let side = rng.range(90.0, 110.0);
+        let id = rng.next_u64() % 256;
+        let mut s = scene(Family::ct14(), id, side, &mut rng);
+        let cell = side / 16.0;
+        s.blur = (rng.range(0.4, 0.55) * cell) as f32;
+        let out = det.detect(&s.render());
+        for d in &out {
+            assert_eq!(d.id, id, "scene {k}");
+            let err = corner_errors(&d.corners, &s.corners())
+                .into_iter()
+                .fold(0.0, f64::max);
+            // Never rough (the wild benchmark's rule): a corner of a tag
+            // blurred this much is rounded over several pixels.
+            assert!(
+                err <= 3.0_f64.max(0.05 * side),
+                "scene {k}: corner {err:.2} px off: {d:?} truth {:?}",
+                s.corners()
+            );
+            found += 1;
+        }
+    }
+    eprintln!("defocused tags found: {found} of {total}");
+    assert!(
+        found >= total - 1,
+        "only {found} of {total} defocused tags read"
+    );
+}

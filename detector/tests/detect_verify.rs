@@ -1,0 +1,197 @@
+//! Verification of a decoded tag's geometry against its own model: dark
+//! tape flush with the frame must not leave a rough measured corner, a
+//! hidden corner must say it is estimated, and the corner uncertainties
+//! must cover the truth.
+
+mod common;
+
+use common::*;
+use coppertag::{Detection, Detector, DetectorConfig, Family};
+
+/// A ct14 tag of data-square side about `side_px` pixels, tilted, in a
+/// 480 x 400 frame.
+fn scene(id: u64, side_px: f64, tilt: (f64, f64, f64), seed: u64) -> Scene {
+    let d = CAMERA.f * TAG_SIDE_M / side_px;
+    let r = rotation(tilt.0, tilt.1, tilt.2);
+    let h = CAMERA.homography(&r, [0.0, 0.0, d], TAG_SIDE_M);
+    let (w, hh) = (480u32, 400u32);
+    let shift = nalgebra::Matrix3::new(
+        1.0,
+        0.0,
+        -(CAMERA.cx() - f64::from(w) / 2.0),
+        0.0,
+        1.0,
+        -(CAMERA.cy() - f64::from(hh) / 2.0),
+        0.0,
+        0.0,
+        1.0,
+    );
+    let h = coppertag::homography::Homography::from_matrix(shift * h.matrix());
+    let mut s = Scene::new(Family::ct14(), id, w, hh, h);
+    s.blur = 0.6;
+    s.noise = 2.0;
+    s.seed = seed;
+    s
+}
+
+/// Dark tape (ink black) lying along one side of the data square, its
+/// outer edge on that side, `depth` of the side deep, running out past a
+/// corner (`overhang`) to `end` along the side (tag units, the
+/// `flush-tape` occluder of `synth/src/floor_occluders.rs`), turned by
+/// `turn` quarter turns.
+fn flush_tape(depth: f64, overhang: f64, end: f64, turn: u32, grey: u8) -> Occluder {
+    let poly = [
+        [-overhang, 0.0],
+        [-overhang, depth],
+        [end, depth],
+        [end, 0.0],
+    ]
+    .map(|[x, y]| {
+        let mut p = [x - 0.5, y - 0.5];
+        for _ in 0..turn % 4 {
+            p = [-p[1], p[0]];
+        }
+        p
+    });
+    Occluder {
+        poly: poly.to_vec(),
+        grey,
+    }
+}
+
+/// The largest distance of a measured corner from the truth, and whether
+/// any corner (measured or estimated) is rough (beyond 3 px or 5% of the
+/// side, the wild benchmark's rule).
+fn judge(d: &Detection, s: &Scene) -> (f64, bool) {
+    let truth = s.corners();
+    let errs = corner_errors(&d.corners, &truth);
+    let side = (0..4)
+        .map(|i| {
+            let (a, b) = (truth[i], truth[(i + 1) % 4]);
+            (a[0] - b[0]).hypot(a[1] - b[1])
+        })
+        .sum::<f64>()
+        / 4.0;
+    let rough = errs.iter().any(|&e| e > 3.0_f64.max(0.05 * side));
+    let measured = errs
+        .iter()
+        .zip(d.estimated)
+        .filter(|(_, est)| !est)
+        .map(|(e, _)| *e)
+        .fold(0.0, f64::max);
+    (measured, rough)
+}
+
+#[test]
+fn flush_tape_never_leaves_a_rough_measured_corner() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(11);
+    let (mut found, mut total) = (0, 0);
+    for (k, &(depth, end)) in [(0.12, 0.7), (0.2, 1.2), (0.25, 0.5), (0.3, 1.2)]
+        .iter()
+        .cycle()
+        .take(12)
+        .enumerate()
+    {
+        let id = rng.next_u64() % 256;
+        let tilt = (
+            rng.range(-0.5, 0.5),
+            rng.range(-0.5, 0.5),
+            rng.range(0.0, std::f64::consts::TAU),
+        );
+        let mut s = scene(id, rng.range(70.0, 140.0), tilt, k as u64);
+        s.occluders.push(flush_tape(
+            depth,
+            rng.range(0.1, 0.5),
+            end,
+            k as u32,
+            s.black,
+        ));
+        let out = det.detect(&s.render());
+        total += 1;
+        for d in &out {
+            assert_eq!(d.id, id, "wrong id in scene {k}: {d:?}");
+            let (measured, rough) = judge(d, &s);
+            assert!(
+                !rough,
+                "scene {k}: rough detection {d:?} truth {:?}",
+                s.corners()
+            );
+            assert!(
+                measured <= 1.0,
+                "scene {k}: a measured corner {measured:.2} px off: {d:?} truth {:?}",
+                s.corners()
+            );
+            found += 1;
+        }
+    }
+    eprintln!("flush tape: {found} of {total} found, none rough");
+}
+
+#[test]
+fn a_stick_over_a_corner_makes_it_estimated() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut seen = 0;
+    for (k, grey) in [25u8, 230, 25, 230].into_iter().enumerate() {
+        let mut s = scene(17 + k as u64, 110.0, (0.2, -0.3, 0.4 + k as f64), k as u64);
+        // A stick 0.2 wide across the TL corner, at 45 degrees: between
+        // the lines x + y = c1 and x + y = c2 (TL is on x + y = -1).
+        let (c1, c2) = (-1.14, -0.86);
+        s.occluders.push(Occluder {
+            poly: vec![
+                [-1.5, c1 + 1.5],
+                [c1 + 1.5, -1.5],
+                [c2 + 1.5, -1.5],
+                [-1.5, c2 + 1.5],
+            ],
+            grey,
+        });
+        let out = det.detect(&s.render());
+        let Some(d) = out.first() else {
+            continue;
+        };
+        assert_eq!(d.id, s.id);
+        let (measured, rough) = judge(d, &s);
+        assert!(!rough, "case {k}: rough {d:?} truth {:?}", s.corners());
+        assert!(
+            measured <= 1.0,
+            "case {k}: measured corner {measured:.2} px off"
+        );
+        assert!(
+            d.estimated[0],
+            "case {k}: the hidden TL corner is not estimated: {d:?}"
+        );
+        assert!(
+            !d.estimated[2],
+            "case {k}: the visible BR corner is estimated: {d:?}"
+        );
+        seen += 1;
+    }
+    assert!(seen >= 3, "only {seen} of 4 stick scenes found");
+}
+
+#[test]
+fn corner_uncertainty_covers_the_truth() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(5);
+    let (mut within, mut n) = (0, 0);
+    for k in 0..10 {
+        let tilt = (
+            rng.range(-0.6, 0.6),
+            rng.range(-0.6, 0.6),
+            rng.range(0.0, std::f64::consts::TAU),
+        );
+        let s = scene(rng.next_u64() % 256, rng.range(40.0, 160.0), tilt, k);
+        let out = det.detect(&s.render());
+        let d = out.first().unwrap_or_else(|| panic!("scene {k} missed"));
+        let sigma = d.corner_sigma.expect("a clean tag is fitted");
+        for (e, sg) in corner_errors(&d.corners, &s.corners()).iter().zip(sigma) {
+            assert!(sg > 0.0 && sg < 1.0, "scene {k}: sigma {sg}");
+            n += 1;
+            within += usize::from(*e <= 2.0 * sg);
+        }
+    }
+    let share = within as f64 / n as f64;
+    eprintln!("corners within 2 sigma: {within} of {n}");
+    assert!(share >= 0.9, "only {share:.2} of corners within 2 sigma");
+}
