@@ -6,7 +6,7 @@
 //! tolerance, while smaller drifts do not.
 
 use coppertag_eval::gate::{baseline_of, check_speed, Tolerances};
-use coppertag_eval::speed::{estimate, SpeedReport};
+use coppertag_eval::speed::{confirm_failures, estimate, SpeedReport};
 
 fn saved_run() -> SpeedReport {
     let text = include_str!("fixtures/speed-run.json");
@@ -73,4 +73,54 @@ fn a_peer_missing_from_the_run_fails() {
     let stag = verdicts.iter().find(|v| v.peer == "stag").unwrap();
     assert!(stag.failed && stag.now.is_none());
     assert!(stag.to_string().contains("not measured"));
+}
+
+#[test]
+fn only_failing_peers_are_measured_again_and_the_second_measurement_decides() {
+    let run = saved_run();
+    let baseline = baseline_of(&[], Some(&run), None, "test");
+    let tol = Tolerances::default();
+
+    // Unchanged code: nothing fails, nothing is measured again.
+    let mut same = run.clone();
+    let again = confirm_failures(&mut same, &baseline, tol, |peer| {
+        panic!("{peer} was measured again although it passed")
+    })
+    .unwrap();
+    assert!(again.is_empty() && same.first_attempts.is_empty());
+
+    // A blip: the first measurement is 40% slow, the second is not.
+    let mut blip = slowed(&run, 1.4);
+    let again = confirm_failures(
+        &mut blip,
+        &baseline,
+        tol,
+        |peer| Ok(run.peers[peer].clone()),
+    )
+    .unwrap();
+    assert_eq!(again.len(), 3, "{again:?}");
+    assert_eq!(blip.first_attempts.len(), 3);
+    assert!(check_speed(&baseline, &blip, tol).iter().all(|v| !v.failed));
+    // The first measurement is kept in the report, as measured.
+    let slow = slowed(&run, 1.4);
+    assert_eq!(blip.first_attempts["stag"], slow.peers["stag"]);
+
+    // A real slowdown fails the second measurement as well.
+    let mut real = slowed(&run, 1.4);
+    confirm_failures(&mut real, &baseline, tol, |peer| {
+        Ok(slow.peers[peer].clone())
+    })
+    .unwrap();
+    let verdicts = check_speed(&baseline, &real, tol);
+    assert!(verdicts.iter().all(|v| v.failed), "{verdicts:?}");
+
+    // A failing re-measurement is an error, not a pass.
+    let mut broken = slowed(&run, 1.4);
+    let err = confirm_failures(&mut broken, &baseline, tol, |peer| {
+        Err(coppertag_eval::EvalError::Detector {
+            detector: peer.into(),
+            message: "crashed".into(),
+        })
+    });
+    assert!(err.is_err());
 }

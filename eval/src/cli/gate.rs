@@ -75,7 +75,8 @@ pub struct GateArgs {
     pub update_wild: bool,
 }
 
-fn read_baseline(path: &std::path::Path) -> Result<Baseline> {
+/// Reads a baseline file (also for `coppertag speed --confirm-against`).
+pub(super) fn read_baseline(path: &std::path::Path) -> Result<Baseline> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     serde_json::from_str(&text).with_context(|| format!("{}: not a baseline file", path.display()))
@@ -209,6 +210,13 @@ pub fn run(args: &GateArgs) -> Result<bool> {
                 eprintln!(
                     "note: this speed run slowed ours {}x on purpose",
                     speed.options.slowdown
+                );
+            }
+            for (peer, first) in &speed.first_attempts {
+                eprintln!(
+                    "time vs {peer}: the first measurement, {:.3}x (95% band {:.3}x-{:.3}x), lay \
+                     wholly above the limit, so it was measured again; the second is checked:",
+                    first.ratio.median, first.ratio.low, first.ratio.high
                 );
             }
             for v in check_speed(&baseline, speed, tol) {
