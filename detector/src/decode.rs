@@ -155,19 +155,63 @@ pub fn decode_quad_with(
     }
     // Cells as whiteness: 0 at the frame's black, 1 at the margin's white.
     let y: Vec<f64> = s.cells.iter().map(|v| (v - s.black) / contrast).collect();
-    let reading = read_cells(family, &y, params.erase_fraction).or_else(|| {
-        // Third chance, for a blurred tag only: undo the blur in cell
-        // space, at the assumed width that leaves the fewest grey cells.
-        if !blurred(&y) {
-            return None;
-        }
-        let x = DEBLUR_SIGMAS
-            .iter()
-            .filter_map(|&sg| deblur(&y, n, sg))
-            .min_by_key(|x| mid_band(x))?;
-        read_cells(family, &x, params.erase_fraction)
-    })?;
+    let reading = read_cells(family, &y, params.erase_fraction)
+        .or_else(|| {
+            // Third chance, for a blurred tag only: undo the blur in cell
+            // space, at the assumed width that leaves the fewest grey cells.
+            if !blurred(&y) {
+                return None;
+            }
+            let x = DEBLUR_SIGMAS
+                .iter()
+                .filter_map(|&sg| deblur(&y, n, sg))
+                .min_by_key(|x| mid_band(x))?;
+            read_cells(family, &x, params.erase_fraction)
+        })
+        .or_else(|| {
+            // Last chance, for uneven light (glare, shadow, a gradient across
+            // the tag): each cell against its neighbours rather than against
+            // the tag's one black and one white level. It reads more, so it
+            // must leave a margin of the code's capacity unused.
+            let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
+            read_cells(family, &locally_levelled(&y, n), params.erase_fraction)
+                .filter(|r| r.corrected <= cap)
+        })?;
     Some(reading_to_quad(reading, corners, contrast))
+}
+
+/// Half-width, in cells, of the neighbourhood each cell is levelled
+/// against in [`locally_levelled`]: 5 x 5 cells hold about as many black as
+/// white cells (the checkerboard mask balances them), while glare and
+/// shadow change little over 5 of a 14-cell grid's cells.
+const SHADING_RADIUS: usize = 2;
+
+/// Reed-Solomon symbols a reading through [`locally_levelled`] must leave
+/// uncorrected below the code's capacity. On the wild set the levelled
+/// reading adds tags at every correction count; those read at the last
+/// two counts of ct14's capacity (8 and 9) brought rough corners with
+/// them, those below did not.
+const SHADED_MARGIN: usize = 2;
+
+/// Cells' whiteness `y` (n x n, row-major) levelled by their neighbours:
+/// each cell minus the mean of the cells within [`SHADING_RADIUS`] (the
+/// grid's edge clips the window), plus a half. An adaptive mean threshold
+/// (as in Wellner's and Bradley and Roth's image thresholding) in cell
+/// space: uneven light moves a cell and its neighbours together.
+fn locally_levelled(y: &[f64], n: usize) -> Vec<f64> {
+    let r = SHADING_RADIUS;
+    (0..n * n)
+        .map(|c| {
+            let (i, j) = (c / n, c % n);
+            let rows = i.saturating_sub(r)..=(i + r).min(n - 1);
+            let cols = j.saturating_sub(r)..=(j + r).min(n - 1);
+            let count = (rows.end() - rows.start() + 1) * (cols.end() - cols.start() + 1);
+            let sum: f64 = rows
+                .flat_map(|ii| y[ii * n + cols.start()..=ii * n + cols.end()].iter())
+                .sum();
+            y[c] - sum / count as f64 + 0.5
+        })
+        .collect()
 }
 
 /// Blur widths (cells, Gaussian sigma) considered when the plain reading
@@ -224,5 +268,65 @@ fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> Qu
         corrected: r.corrected,
         rotation: d,
         contrast,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::grid_code::encode_cells;
+
+    /// Whiteness of a tag's cells under a glare spot: cells near the spot's
+    /// centre are lifted by up to `peak` (1 = the whole black-to-white gap).
+    fn under_glare(family: &Family, id: u64, peak: f64) -> Vec<f64> {
+        let n = family.grid();
+        let black = encode_cells(family, id).unwrap();
+        let (ci, cj, r) = (3.0, 10.0, 5.0);
+        black
+            .iter()
+            .enumerate()
+            .map(|(c, &b)| {
+                let (i, j) = ((c / n) as f64, (c % n) as f64);
+                let d2 = (i - ci).powi(2) + (j - cj).powi(2);
+                let base = if b { 0.0 } else { 1.0 };
+                base + peak * (-d2 / (2.0 * r * r)).exp()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn levelling_reads_a_tag_the_global_threshold_loses_to_glare() {
+        let fam = Family::ct14();
+        let y = under_glare(fam, 77, 1.2);
+        assert!(
+            read_cells(fam, &y, 0.2).is_none(),
+            "the glare must defeat the plain reading for this test to mean anything"
+        );
+        let levelled = locally_levelled(&y, fam.grid());
+        let r = read_cells(fam, &levelled, 0.2).expect("read after levelling");
+        assert_eq!(r.id, 77);
+    }
+
+    #[test]
+    fn levelling_keeps_an_evenly_lit_tag() {
+        let fam = Family::ct14();
+        let y = under_glare(fam, 200, 0.0);
+        let r = read_cells(fam, &locally_levelled(&y, fam.grid()), 0.2).unwrap();
+        assert_eq!((r.id, r.corrected), (200, 0));
+    }
+
+    #[test]
+    fn levelling_subtracts_the_neighbourhood_mean() {
+        // A 5 x 5 grid of one grey level stays at a half everywhere; a lone
+        // bright cell rises above it by what it differs from its window.
+        let mut y = vec![0.3; 25];
+        assert!(locally_levelled(&y, 5)
+            .iter()
+            .all(|v| (v - 0.5).abs() < 1e-12));
+        y[12] = 1.3;
+        let l = locally_levelled(&y, 5);
+        assert!((l[12] - (1.3 - (0.3 * 24.0 + 1.3) / 25.0 + 0.5)).abs() < 1e-12);
+        // A corner cell's window is clipped to 3 x 3.
+        assert!((l[0] - (0.3 - (0.3 * 8.0 + 1.3) / 9.0 + 0.5)).abs() < 1e-12);
     }
 }

@@ -23,8 +23,12 @@ fn fixtures() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures")
 }
 
+/// A scene's name, image and, for rendered scenes, the truth: id and
+/// data-square corners TL, BL, BR, TR.
+type Case = (String, GrayImage, Option<(u64, [[f64; 2]; 4])>);
+
 /// Fixture images, sorted by family then numeric id.
-fn fixture_images() -> Vec<(String, GrayImage)> {
+fn fixture_images() -> Vec<Case> {
     let mut out = Vec::new();
     for fam in ["ct14", "ct8"] {
         let dir = fixtures().join(fam);
@@ -43,7 +47,7 @@ fn fixture_images() -> Vec<(String, GrayImage)> {
             let img = image::open(&path)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
                 .to_luma8();
-            out.push((format!("{fam}/{id}.png"), img));
+            out.push((format!("{fam}/{id}.png"), img, None));
         }
     }
     out
@@ -52,7 +56,7 @@ fn fixture_images() -> Vec<(String, GrayImage)> {
 /// The rendered scenes: each occlusion scenario at 10 % and 20 % of the
 /// data square, with a dark and a light occluder, on a tilted tag at about
 /// 0.8 m (a 960 x 540 crop of the paper's camera).
-fn rendered_scenes() -> Vec<(String, GrayImage)> {
+fn rendered_scenes() -> Vec<Case> {
     let mut out = Vec::new();
     let mut rng = Rng::new(99);
     for fam in [Family::ct14(), Family::ct8()] {
@@ -79,6 +83,7 @@ fn rendered_scenes() -> Vec<(String, GrayImage)> {
                 out.push((
                     format!("render/{}-{id}-{kind:?}-{frac}-{grey}", fam.name()),
                     s.render(),
+                    Some((id, s.corners())),
                 ));
             }
         }
@@ -102,13 +107,32 @@ fn line(scene: &str, d: &Detection) -> String {
     s
 }
 
-fn report() -> String {
+/// The golden text, and every detection in a rendered scene that is not
+/// its tag with every corner within 3 px or 5% of the side (the larger) of
+/// the truth: a wrong id or a rough corner.
+fn report() -> (String, Vec<String>) {
     let mut det = Detector::new(DetectorConfig::default()).unwrap();
     let mut out = String::from(
         "# scene family id corrections corners(m measured, e estimated) TL BL BR TR x y\n",
     );
-    for (name, img) in fixture_images().into_iter().chain(rendered_scenes()) {
+    let mut wrong = Vec::new();
+    for (name, img, truth) in fixture_images().into_iter().chain(rendered_scenes()) {
         let found = det.detect(&img);
+        if let Some((id, corners)) = truth {
+            let side = (0..4)
+                .map(|k| dist(corners[k], corners[(k + 1) % 4]))
+                .sum::<f64>()
+                / 4.0;
+            let allowed = (0.05 * side).max(3.0);
+            for d in &found {
+                let err = (0..4)
+                    .map(|k| dist(d.corners[k], corners[k]))
+                    .fold(0.0, f64::max);
+                if d.id != id || err > allowed {
+                    wrong.push(format!("{} (corner error {err:.2} px)", line(&name, d)));
+                }
+            }
+        }
         if found.is_empty() {
             writeln!(out, "{name} none").unwrap();
         }
@@ -116,13 +140,22 @@ fn report() -> String {
             writeln!(out, "{}", line(&name, d)).unwrap();
         }
     }
-    out
+    (out, wrong)
+}
+
+fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+    (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
 #[test]
 fn detections_match_the_golden_file() {
     let path = fixtures().join("detections.golden");
-    let got = report();
+    let (got, wrong) = report();
+    assert!(
+        wrong.is_empty(),
+        "wrong ids or rough corners in rendered scenes:\n{}",
+        wrong.join("\n")
+    );
     if std::env::var_os("COPPERTAG_BLESS").is_some_and(|v| v == "1") {
         // Atomic: a half-written golden file never replaces a good one.
         let tmp = path.with_extension("golden.tmp");
