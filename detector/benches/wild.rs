@@ -13,9 +13,10 @@
 //! the whole set. Frames are rendered once, before any timing.
 //!
 //! `cargo bench -p coppertag --bench wild`; set `COPPERTAG_BENCH_ROUNDS`
-//! to change the number of runs per frame of the printed summary, and pass
-//! a criterion filter that matches nothing (`-- summary-only`) to print
-//! the summary alone.
+//! to change the number of runs per frame of the printed summary,
+//! `COPPERTAG_BENCH_SETS` (say `clean_1080p,wild_4k`) to render and time
+//! only some sets, and pass a criterion filter that matches nothing
+//! (`-- summary-only`) to print the summary alone.
 
 use std::time::{Duration, Instant};
 
@@ -321,11 +322,21 @@ fn summary(det: &mut Detector, set: &FrameSet, rounds: usize) {
 
 fn bench(c: &mut Criterion) {
     let t0 = Instant::now();
-    let sets = [
-        clean_set(),
-        wild_set("wild_1080p", 1080, FRAMES_1080P, SEED),
-        wild_set("wild_4k", 2160, FRAMES_4K, SEED ^ 0x4B),
-    ];
+    let only = std::env::var("COPPERTAG_BENCH_SETS").ok();
+    let wanted = |name: &str| {
+        only.as_ref()
+            .is_none_or(|o| o.split(',').any(|n| n == name))
+    };
+    let mut sets = Vec::new();
+    if wanted("clean_1080p") {
+        sets.push(clean_set());
+    }
+    if wanted("wild_1080p") {
+        sets.push(wild_set("wild_1080p", 1080, FRAMES_1080P, SEED));
+    }
+    if wanted("wild_4k") {
+        sets.push(wild_set("wild_4k", 2160, FRAMES_4K, SEED ^ 0x4B));
+    }
     println!("frames rendered in {:.1} s", t0.elapsed().as_secs_f64());
     let rounds = std::env::var("COPPERTAG_BENCH_ROUNDS")
         .ok()
@@ -338,7 +349,7 @@ fn bench(c: &mut Criterion) {
     }
     let mut group = c.benchmark_group("wild");
     group.sample_size(10);
-    for set in &sets[1..] {
+    for set in sets.iter().filter(|s| s.name != "clean_1080p") {
         group.bench_function(format!("{}_set_of_{}", set.name, set.frames.len()), |b| {
             b.iter(|| {
                 for f in &set.frames {
