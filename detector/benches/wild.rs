@@ -15,8 +15,11 @@
 //! `cargo bench -p coppertag --bench wild`; set `COPPERTAG_BENCH_ROUNDS`
 //! to change the number of runs per frame of the printed summary,
 //! `COPPERTAG_BENCH_SETS` (say `clean_1080p,wild_4k`) to render and time
-//! only some sets, and pass a criterion filter that matches nothing
-//! (`-- summary-only`) to print the summary alone.
+//! only some sets, `COPPERTAG_BENCH_FRAMES` to a directory to keep the
+//! rendered frames there (PNG) and read them back on later runs (under
+//! valgrind, rendering costs far more than detecting), and pass a
+//! criterion filter that matches nothing (`-- summary-only`) to print the
+//! summary alone.
 
 use std::time::{Duration, Instant};
 
@@ -232,8 +235,8 @@ fn wild_frame(seed: u64, cam: &Camera) -> (GrayImage, usize) {
 
 fn wild_set(name: &'static str, height: u32, n: usize, seed: u64) -> FrameSet {
     let cam = camera(height);
-    let (frames, counts): (Vec<_>, Vec<_>) = (0..n as u64)
-        .map(|i| wild_frame(seed.wrapping_add(i), &cam))
+    let (frames, counts): (Vec<_>, Vec<_>) = (0..n)
+        .map(|i| cached(name, i, || wild_frame(seed.wrapping_add(i as u64), &cam)))
         .unzip();
     FrameSet {
         name,
@@ -242,12 +245,40 @@ fn wild_set(name: &'static str, height: u32, n: usize, seed: u64) -> FrameSet {
     }
 }
 
+/// Frame `i` of set `name` and its number of tags: read from the
+/// `COPPERTAG_BENCH_FRAMES` directory when it holds them (`<name>_<i>.png`
+/// and `.txt`), else made by `render` (and saved there when the variable
+/// is set).
+fn cached(name: &str, i: usize, render: impl FnOnce() -> (GrayImage, usize)) -> (GrayImage, usize) {
+    let Some(dir) = std::env::var_os("COPPERTAG_BENCH_FRAMES").map(std::path::PathBuf::from) else {
+        return render();
+    };
+    let path = dir.join(format!("{name}_{i:02}"));
+    let (png, txt) = (path.with_extension("png"), path.with_extension("txt"));
+    let tags = std::fs::read_to_string(&txt)
+        .ok()
+        .and_then(|t| t.trim().parse().ok());
+    if let (Ok(img), Some(tags)) = (image::open(&png), tags) {
+        return (img.to_luma8(), tags);
+    }
+    let (img, tags) = render();
+    std::fs::create_dir_all(&dir).expect("frames directory");
+    img.save(&png).expect("frame saved");
+    std::fs::write(&txt, format!("{tags}\n")).expect("tag count saved");
+    (img, tags)
+}
+
 /// The clean one-tag frames of `benches/detect.rs`.
 fn clean_set() -> FrameSet {
     let r = common::rotation(0.35, -0.25, 0.6);
     let frames = [1.0, 2.8]
-        .map(|d| common::paper_scene(Family::ct14(), 42, d, &r).render())
-        .to_vec();
+        .iter()
+        .enumerate()
+        .map(|(i, &d)| {
+            let scene = common::paper_scene(Family::ct14(), 42, d, &r);
+            cached("clean_1080p", i, || (scene.render(), 1)).0
+        })
+        .collect::<Vec<_>>();
     FrameSet {
         name: "clean_1080p",
         tags: frames.len(),

@@ -84,27 +84,43 @@ pub(crate) fn find_contours(
         let row = y * pw;
         let mut x = 1;
         while x < pw - 1 {
-            let i = row + x;
-            let block = f[i - 1..].first_chunk::<{ SKIP_BLOCK + 2 }>();
-            if x + SKIP_BLOCK < pw && block.is_some_and(uniform) {
-                x += SKIP_BLOCK;
-                continue;
+            // Pixels [x, end) are passed over at once, or tested one by
+            // one when they hold an edge.
+            let end = (x + SKIP_BLOCK).min(pw - 1);
+            let block = f[row + x - 1..].first_chunk::<{ SKIP_BLOCK + 2 }>();
+            if end < x + SKIP_BLOCK || !block.is_some_and(uniform) {
+                for i in row + x..row + end {
+                    start_border(f, pw, i, &off, min_len, max_len, out);
+                }
             }
-            let v = f[i];
-            if v == 0 {
-                // Skip background quickly.
-                x += 1;
-                continue;
-            }
-            let outer = v == 1 && f[i - 1] == 0;
-            let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
-            if outer || hole {
-                // Start direction (i2): west for outer, east for hole.
-                let from = if outer { 4 } else { 0 };
-                follow(f, pw, i, from, &off, hole, min_len, max_len, out);
-            }
-            x += 1;
+            x = end;
         }
+    }
+}
+
+/// Follows the border starting at pixel `i` of the scan, if one does:
+/// an outer border at a foreground pixel not yet followed with background
+/// on its left, a hole border at a foreground pixel not on a border with
+/// background on its right (Suzuki & Abe's step 1).
+fn start_border(
+    f: &mut [u8],
+    pw: usize,
+    i: usize,
+    off: &[isize; 8],
+    min_len: usize,
+    max_len: usize,
+    out: &mut Contours,
+) {
+    let v = f[i];
+    if v == 0 {
+        return;
+    }
+    let outer = v == 1 && f[i - 1] == 0;
+    let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
+    if outer || hole {
+        // Start direction (i2): west for outer, east for hole.
+        let from = if outer { 4 } else { 0 };
+        follow(f, pw, i, from, off, hole, min_len, max_len, out);
     }
 }
 
