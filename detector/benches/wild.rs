@@ -21,6 +21,7 @@
 //! criterion filter that matches nothing (`-- summary-only`) to print the
 //! summary alone.
 
+use std::hash::{Hash, Hasher};
 use std::time::{Duration, Instant};
 
 use coppertag::{Detector, DetectorConfig, Family, StageTimes};
@@ -304,11 +305,16 @@ fn ms(d: Duration) -> String {
 fn summary(det: &mut Detector, set: &FrameSet, rounds: usize) {
     let mut times: Vec<Vec<StageTimes>> = vec![Vec::new(); set.frames.len()];
     let mut found = 0;
+    let mut digest = std::collections::hash_map::DefaultHasher::new();
     for round in 0..rounds {
         for (frame, t) in set.frames.iter().zip(&mut times) {
-            let n = det.detect(frame).len();
+            let found_here = det.detect(frame);
             if round == 0 {
-                found += n;
+                found += found_here.len();
+                // Every field, floats in their shortest exact form: any
+                // change of the detector's output shows as a new digest
+                // (the same on every run of one toolchain).
+                format!("{found_here:?}").hash(&mut digest);
             }
             t.push(det.stats().times);
         }
@@ -331,13 +337,14 @@ fn summary(det: &mut Detector, set: &FrameSet, rounds: usize) {
     };
     let total = stage("total");
     println!(
-        "{}: {} frames {}x{}, {} tags placed, {} found; per frame over {} runs: median {}, p95 {}, max {}",
+        "{}: {} frames {}x{}, {} tags placed, {} found (digest {:016x}); per frame over {} runs: median {}, p95 {}, max {}",
         set.name,
         set.frames.len(),
         set.frames[0].width(),
         set.frames[0].height(),
         set.tags,
         found,
+        digest.finish(),
         rounds,
         ms(quantile(&total, 0.5)),
         ms(quantile(&total, 0.95)),
