@@ -25,7 +25,7 @@ use std::hash::{Hash, Hasher};
 use std::time::{Duration, Instant};
 
 use coppertag::{Detector, DetectorConfig, Family, StageTimes};
-use criterion::{criterion_group, criterion_main, Criterion};
+use criterion::{criterion_group, criterion_main, Criterion, SamplingMode};
 use image::GrayImage;
 
 #[path = "../tests/common/mod.rs"]
@@ -386,7 +386,9 @@ fn bench(c: &mut Criterion) {
         summary(&mut det, set, rounds);
     }
     let mut group = c.benchmark_group("wild");
-    group.sample_size(10);
+    // A sample is a whole set (a third of a second and more): flat
+    // sampling, ten of them, keeps the run under a minute.
+    group.sample_size(10).sampling_mode(SamplingMode::Flat);
     for set in sets.iter().filter(|s| s.name != "clean_1080p") {
         group.bench_function(format!("{}_set_of_{}", set.name, set.frames.len()), |b| {
             b.iter(|| {
