@@ -236,9 +236,21 @@ fn wild_frame(seed: u64, cam: &Camera) -> (GrayImage, usize) {
 
 fn wild_set(name: &'static str, height: u32, n: usize, seed: u64) -> FrameSet {
     let cam = camera(height);
-    let (frames, counts): (Vec<_>, Vec<_>) = (0..n)
-        .map(|i| cached(name, i, || wild_frame(seed.wrapping_add(i as u64), &cam)))
-        .unzip();
+    // Frames are rendered on every core, one thread per frame: each has
+    // its own seed, so the set is the same however they are scheduled.
+    // (Detection is timed afterwards, on one thread.)
+    let (frames, counts): (Vec<_>, Vec<_>) = std::thread::scope(|scope| {
+        let cam = &cam;
+        let jobs: Vec<_> = (0..n)
+            .map(|i| {
+                scope
+                    .spawn(move || cached(name, i, || wild_frame(seed.wrapping_add(i as u64), cam)))
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|j| j.join().expect("frame rendered"))
+            .unzip()
+    });
     FrameSet {
         name,
         frames,
