@@ -54,7 +54,9 @@ impl<'a> GrayView<'a> {
         })
     }
 
-    /// A packed buffer the crate made itself (`data.len() == w * h`).
+    /// A packed buffer the crate made itself (`data.len() == w * h`); the
+    /// tests' images.
+    #[cfg(test)]
     pub(crate) fn packed(data: &'a [u8], width: usize, height: usize) -> Self {
         debug_assert_eq!(data.len(), width * height);
         Self {

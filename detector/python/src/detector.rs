@@ -64,7 +64,8 @@ impl Detector {
     /// Per-stage times of the last detect() call, in seconds: a dict from
     /// stage name (pipeline order: downsample, threshold, contours, lines,
     /// corners, ellipses, quads, decode, dedup, verify) to time, then "total".
-    /// All zero before the first call.
+    /// All zero before the first call; "downsample" is always zero, as the
+    /// downsampling is done (and timed) in the threshold's pass.
     #[getter]
     fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let dict = PyDict::new(py);

@@ -84,23 +84,61 @@ pub(crate) fn find_contours(
         let row = y * pw;
         let mut x = 1;
         while x < pw - 1 {
-            let i = row + x;
-            let v = f[i];
-            if v == 0 {
-                // Skip background quickly.
-                x += 1;
-                continue;
+            // Pixels [x, end) are passed over at once, or tested one by
+            // one when they hold an edge.
+            let end = (x + SKIP_BLOCK).min(pw - 1);
+            let block = f[row + x - 1..].first_chunk::<{ SKIP_BLOCK + 2 }>();
+            if end < x + SKIP_BLOCK || !block.is_some_and(uniform) {
+                for i in row + x..row + end {
+                    start_border(f, pw, i, &off, min_len, max_len, out);
+                }
             }
-            let outer = v == 1 && f[i - 1] == 0;
-            let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
-            if outer || hole {
-                // Start direction (i2): west for outer, east for hole.
-                let from = if outer { 4 } else { 0 };
-                follow(f, pw, i, from, &off, hole, min_len, max_len, out);
-            }
-            x += 1;
+            x = end;
         }
     }
+}
+
+/// Follows the border starting at pixel `i` of the scan, if one does:
+/// an outer border at a foreground pixel not yet followed with background
+/// on its left, a hole border at a foreground pixel not on a border with
+/// background on its right (Suzuki & Abe's step 1).
+fn start_border(
+    f: &mut [u8],
+    pw: usize,
+    i: usize,
+    off: &[isize; 8],
+    min_len: usize,
+    max_len: usize,
+    out: &mut Contours,
+) {
+    let v = f[i];
+    if v == 0 {
+        return;
+    }
+    let outer = v == 1 && f[i - 1] == 0;
+    let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
+    if outer || hole {
+        // Start direction (i2): west for outer, east for hole.
+        let from = if outer { 4 } else { 0 };
+        follow(f, pw, i, from, off, hole, min_len, max_len, out);
+    }
+}
+
+/// Pixels the scan for border starts passes over at once when none of
+/// them, nor their left and right neighbours, is on an edge between
+/// background and foreground (see [`uniform`]).
+const SKIP_BLOCK: usize = 16;
+
+/// Whether the bytes of `s` are all background (0) or all foreground
+/// (non-zero). A border starts only at a foreground pixel next to
+/// background on its left (outer) or right (hole), so no pixel strictly
+/// inside such a run starts one. Border following changes labels only
+/// from one non-zero value to another, so the test holds whenever it is
+/// made. Written as a count over the whole slice (no early exit), which
+/// the compiler vectorises.
+fn uniform(s: &[u8; SKIP_BLOCK + 2]) -> bool {
+    let zeros = s.iter().fold(0u8, |n, &v| n.wrapping_add(u8::from(v == 0)));
+    zeros == 0 || usize::from(zeros) == s.len()
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -252,6 +290,56 @@ mod tests {
         assert!(signed_area(c.points_of(hole)) > 0);
         assert!(hole.len >= 12);
         assert_eq!(c.points_of(outer)[0], [1, 1]);
+    }
+
+    /// The scan without block skipping: every pixel tested.
+    fn find_contours_pixelwise(f: &mut [u8], pw: usize, ph: usize, out: &mut Contours) {
+        out.points.clear();
+        out.list.clear();
+        let off: [isize; 8] = std::array::from_fn(|k| DY[k] * pw as isize + DX[k]);
+        for i in (1..ph - 1).flat_map(|y| (1..pw - 1).map(move |x| y * pw + x)) {
+            let v = f[i];
+            let outer = v == 1 && f[i - 1] == 0;
+            let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
+            if outer || hole {
+                let from = if outer { 4 } else { 0 };
+                follow(f, pw, i, from, &off, hole, 1, usize::MAX, out);
+            }
+        }
+    }
+
+    #[test]
+    fn block_skipping_changes_nothing() {
+        let mut seed = 7u64;
+        for (w, h, density) in [(70, 40, 2), (33, 50, 8), (130, 20, 15), (17, 17, 1)] {
+            // Random rectangles: long runs of both values, and noise.
+            let pw = w + 2;
+            let mut f = vec![0u8; pw * (h + 2)];
+            let mut next = |m: usize| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 33) as usize % m
+            };
+            for _ in 0..density * 4 {
+                let (x0, y0) = (next(w), next(h));
+                let (x1, y1) = ((x0 + next(40)).min(w), (y0 + next(12)).min(h));
+                let v = u8::from(next(3) > 0);
+                for y in y0..y1 {
+                    f[(y + 1) * pw + x0 + 1..(y + 1) * pw + x1 + 1].fill(v);
+                }
+            }
+            for _ in 0..density * 20 {
+                f[(next(h) + 1) * pw + next(w) + 1] ^= 1;
+            }
+            let (mut a, mut b) = (Contours::default(), Contours::default());
+            let mut g = f.clone();
+            find_contours(&mut f, pw, h + 2, 1, usize::MAX, &mut a);
+            find_contours_pixelwise(&mut g, pw, h + 2, &mut b);
+            assert_eq!(a.points, b.points, "{w}x{h}");
+            assert_eq!(a.list.len(), b.list.len());
+            assert_eq!(f, g);
+        }
     }
 
     #[test]

@@ -1,11 +1,25 @@
-//! Stage 1: optional 2x downsampling and adaptive thresholding.
+//! Stage 1: optional 2x downsampling and adaptive thresholding, in one
+//! pass over the image.
 //!
 //! The threshold is the local mean over a square window minus an offset
 //! (the classic mean-C adaptive threshold, as in OpenCV's
 //! `ADAPTIVE_THRESH_MEAN_C`). The window sums are kept as running column
-//! sums updated row by row, which is the integral-image idea with O(width)
+//! sums updated row by row, which is the integral-image idea (Crow,
+//! "Summed-area tables for texture mapping", SIGGRAPH 1984) with O(width)
 //! memory instead of O(width x height): a 20000 x 20000 frame needs no
 //! 1.6 GB integral image.
+//!
+//! Why one pass: the stage reads every input pixel once and writes every
+//! binary pixel once, so it is bound by memory traffic, not arithmetic.
+//! Working row `y + radius` is downsampled (when asked) and added to the
+//! column sums just before row `y` is thresholded, so the rows it reads
+//! again (to add, to threshold, to subtract `2 radius + 1` rows later) are
+//! still in cache. Each step is a plain loop over equal-length slices,
+//! which the compiler turns into SIMD code; the one serial step is the
+//! prefix sum along a row. The loops use wrapping arithmetic although no
+//! value can overflow (bounds at each loop): with overflow checks on (the
+//! `ci` profile's tests and speed gate), checked arithmetic would keep
+//! them from being vectorised.
 
 use crate::view::GrayView;
 
@@ -26,192 +40,414 @@ pub(crate) struct ThresholdParams {
     pub offset: u8,
 }
 
-/// Scale of the downsampled working image: [`downsample2`] halves both
+/// Scale of the downsampled working image: the downsampling halves both
 /// sides.
 pub(crate) const DOWNSAMPLE_FACTOR: f64 = 2.0;
 
-/// The image segmentation runs on and its scale (full-resolution pixels
-/// per working pixel): `img` itself, or its 2x downsampled copy (kept in
-/// `small`) when `p.downsample` is set and the image is at least
-/// [`MIN_DOWNSAMPLE_SIZE`] pixels each way.
-pub(crate) fn working_image<'b>(
-    img: GrayView<'b>,
-    p: &ThresholdParams,
-    small: &'b mut Vec<u8>,
-) -> (GrayView<'b>, f64) {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    if p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE {
-        let (w2, h2) = downsample2(img.data(), w, h, img.stride(), small);
-        (GrayView::packed(small, w2, h2), DOWNSAMPLE_FACTOR)
-    } else {
-        (img, 1.0)
-    }
+/// Buffers of the threshold stage, kept between frames.
+#[derive(Debug, Default)]
+pub(crate) struct ThresholdScratch {
+    /// The 2x downsampled working image (packed), when downsampling.
+    small: Vec<u8>,
+    /// Sum of each column over the window's rows.
+    colsum: Vec<u32>,
+    /// Prefix sums of `colsum` along the row (`width + 1` values,
+    /// wrapping: only differences of nearby ones are used).
+    prefix: Vec<u32>,
 }
 
-/// [`adaptive_threshold`] of the working image with the stage's parameters.
+/// Size of the working image segmentation runs on and its scale
+/// (full-resolution pixels per working pixel).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Working {
+    pub width: usize,
+    pub height: usize,
+    pub scale: f64,
+}
+
+/// Stage 1 on `img`: the working image is `img` itself, or its 2x box
+/// downsampling when `p.downsample` is set and `img` is at least
+/// [`MIN_DOWNSAMPLE_SIZE`] pixels each way; `out` becomes its
+/// [adaptive threshold](adaptive_threshold_into).
 pub(crate) fn threshold(
-    work: &GrayView<'_>,
+    img: &GrayView<'_>,
     p: &ThresholdParams,
-    colsum: &mut Vec<u32>,
+    s: &mut ThresholdScratch,
     out: &mut Vec<u8>,
-) {
-    adaptive_threshold(work, p.radius, p.offset, colsum, out);
+) -> Working {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let mut source = if p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE {
+        // Every byte is written by `Rows::produce` before it is read.
+        s.small.resize((w / 2) * (h / 2), 0);
+        Rows::Half {
+            img: *img,
+            small: &mut s.small,
+        }
+    } else {
+        Rows::Full(*img)
+    };
+    let (width, height) = source.size();
+    adaptive_threshold_into(
+        &mut source,
+        p.radius,
+        p.offset,
+        &mut s.colsum,
+        &mut s.prefix,
+        out,
+    );
+    Working {
+        width,
+        height,
+        scale: if matches!(source, Rows::Half { .. }) {
+            DOWNSAMPLE_FACTOR
+        } else {
+            1.0
+        },
+    }
 }
 
-/// 2 x 2 box downsampling of `src` (`w` x `h`, rows `stride` bytes apart)
-/// into `dst`, which is resized to `(w / 2) x (h / 2)` (packed). Working
-/// pixel `(x, y)` has its centre at full-resolution `(2x + 0.5, 2y + 0.5)`.
-pub(crate) fn downsample2(
-    src: &[u8],
-    w: usize,
-    h: usize,
-    stride: usize,
-    dst: &mut Vec<u8>,
-) -> (usize, usize) {
-    let (w2, h2) = (w / 2, h / 2);
-    dst.clear();
-    dst.resize(w2 * h2, 0);
-    if w2 == 0 || h2 == 0 {
-        return (w2, h2);
-    }
-    for (y, out) in dst.chunks_exact_mut(w2).enumerate() {
-        let r0 = &src[2 * y * stride..2 * y * stride + 2 * w2];
-        let r1 = &src[(2 * y + 1) * stride..(2 * y + 1) * stride + 2 * w2];
-        for (x, o) in out.iter_mut().enumerate() {
-            let s = u16::from(r0[2 * x])
-                + u16::from(r0[2 * x + 1])
-                + u16::from(r1[2 * x])
-                + u16::from(r1[2 * x + 1]);
-            *o = ((s + 2) >> 2) as u8;
+/// Rows of the working image: the input's own, or made one by one (in
+/// order) by 2x downsampling into `small`.
+enum Rows<'a, 'b> {
+    Full(GrayView<'a>),
+    Half {
+        img: GrayView<'a>,
+        small: &'b mut [u8],
+    },
+}
+
+impl Rows<'_, '_> {
+    /// Working image size.
+    fn size(&self) -> (usize, usize) {
+        match self {
+            Rows::Full(v) => (v.width() as usize, v.height() as usize),
+            Rows::Half { img, .. } => (img.width() as usize / 2, img.height() as usize / 2),
         }
     }
-    (w2, h2)
+
+    /// Makes row `y` readable by [`Rows::row`]; called once per row.
+    fn produce(&mut self, y: usize) {
+        if let Rows::Half { img, small } = self {
+            let w = img.width() as usize / 2;
+            downsample_row(img.row(2 * y), img.row(2 * y + 1), &mut small[y * w..][..w]);
+        }
+    }
+
+    /// Row `y` (after [`Rows::produce`] when downsampling).
+    fn row(&self, y: usize) -> &[u8] {
+        match self {
+            Rows::Full(v) => v.row(y),
+            Rows::Half { img, small } => {
+                let w = img.width() as usize / 2;
+                &small[y * w..][..w]
+            }
+        }
+    }
 }
 
-/// Adaptive threshold of `img` (`w` x `h`) into `out`, a `(w + 2) x (h + 2)`
-/// buffer with a one-pixel zero border (what the border follower needs).
-/// A pixel becomes 1 (dark, foreground) when it is more than `offset` grey
-/// levels below the mean of the `(2 radius + 1)^2` window around it (the
-/// window is clipped at the image border).
+/// 2 x 2 box downsampling of rows `r0` and `r1` into `out` (rounded
+/// mean): working pixel `x` has its centre at full-resolution `2x + 0.5`.
 ///
-/// `colsum` is scratch space, resized here.
-pub(crate) fn adaptive_threshold(
-    img: &GrayView<'_>,
+/// Each horizontal pair of bytes is read as one little-endian `u16`, whose
+/// low and high bytes are the pair: the vectoriser handles masks and shifts
+/// of 16-bit lanes well, where it leaves a loop reading every other byte
+/// scalar.
+fn downsample_row(r0: &[u8], r1: &[u8], out: &mut [u8]) {
+    let (a, b) = (r0.as_chunks::<2>().0, r1.as_chunks::<2>().0);
+    for ((o, &a), &b) in out.iter_mut().zip(a).zip(b) {
+        let (a, b) = (u16::from_le_bytes(a), u16::from_le_bytes(b));
+        // At most 4 * 255 + 2: no wrapping.
+        let s = (a & 0xff)
+            .wrapping_add(a >> 8)
+            .wrapping_add(b & 0xff)
+            .wrapping_add(b >> 8)
+            .wrapping_add(2);
+        *o = (s >> 2) as u8;
+    }
+}
+
+/// `colsum += add - sub`, element-wise. `sub` is a row already in the
+/// sums, so nothing goes below zero, and a column sums at most
+/// `2 radius + 1` rows of 255.
+fn slide(colsum: &mut [u32], add: &[u8], sub: &[u8]) {
+    for ((c, &a), &s) in colsum.iter_mut().zip(add).zip(sub) {
+        *c = c.wrapping_add(u32::from(a)).wrapping_sub(u32::from(s));
+    }
+}
+
+/// `colsum += add`, element-wise (see [`slide`]).
+fn add_row(colsum: &mut [u32], add: &[u8]) {
+    for (c, &a) in colsum.iter_mut().zip(add) {
+        *c = c.wrapping_add(u32::from(a));
+    }
+}
+
+/// `colsum -= sub`, element-wise (see [`slide`]).
+fn sub_row(colsum: &mut [u32], sub: &[u8]) {
+    for (c, &s) in colsum.iter_mut().zip(sub) {
+        *c = c.wrapping_sub(u32::from(s));
+    }
+}
+
+/// Whether a pixel of grey `p` is dark: more than `offset` below the mean
+/// `sum / count` of its window, compared without a division. No wrapping:
+/// `count` is at most `(2 radius + 1)^2` with a radius of at most 200
+/// ([`crate::DetectorConfig::threshold_radius`]), so the product is below
+/// `510 * 401^2`.
+#[inline(always)]
+fn is_dark(p: u8, offset: u32, sum: u32, count: u32) -> u8 {
+    u8::from(u32::from(p).wrapping_add(offset).wrapping_mul(count) < sum)
+}
+
+/// Values summed at a time by [`prefix_sums`].
+const PREFIX_BLOCK: usize = 8;
+
+/// Running (inclusive, wrapping) sums of `v` into `out`. A block of
+/// [`PREFIX_BLOCK`] values is summed on its own, then offset by the total
+/// so far: the blocks' own sums do not wait for each other, so the
+/// processor overlaps them, where one running total is a chain of
+/// dependent additions, one per value.
+fn prefix_sums(v: &[u32], out: &mut [u32]) {
+    let (blocks, tail) = v.as_chunks::<PREFIX_BLOCK>();
+    let (out_blocks, out_tail) = out.as_chunks_mut::<PREFIX_BLOCK>();
+    let mut carry = 0u32;
+    for (o, b) in out_blocks.iter_mut().zip(blocks) {
+        let mut s = *b;
+        for k in 1..PREFIX_BLOCK {
+            s[k] = s[k].wrapping_add(s[k - 1]);
+        }
+        for (o, s) in o.iter_mut().zip(s) {
+            *o = s.wrapping_add(carry);
+        }
+        carry = o[PREFIX_BLOCK - 1];
+    }
+    for (o, &t) in out_tail.iter_mut().zip(tail) {
+        carry = carry.wrapping_add(t);
+        *o = carry;
+    }
+}
+
+/// Thresholds one row: `dst[x]` is [`is_dark`] of `row[x]` against the
+/// window `[x - r, x + r]` (clipped to the row) of `colsum`, whose values
+/// each sum `rows` image rows. `prefix` is scratch space.
+fn threshold_row(
+    row: &[u8],
+    colsum: &[u32],
+    rows: u32,
+    r: usize,
+    offset: u32,
+    prefix: &mut Vec<u32>,
+    dst: &mut [u8],
+) {
+    let w = row.len();
+    // Prefix sums wrap: a window's sum is a difference of two of them,
+    // which is exact as long as the window's own sum fits in a u32.
+    prefix.resize(w + 1, 0);
+    prefix[0] = 0;
+    prefix_sums(colsum, &mut prefix[1..]);
+    let clipped = |x: usize| {
+        let (lo, hi) = (x.saturating_sub(r), (x + r + 1).min(w));
+        let sum = prefix[hi].wrapping_sub(prefix[lo]);
+        is_dark(row[x], offset, sum, rows * (hi - lo) as u32)
+    };
+    // Interior: windows [x - r, x + r] wholly inside, x in [r, w - r).
+    let (start, end) = (r.min(w), w.saturating_sub(r).max(r.min(w)));
+    for x in (0..start).chain(end..w) {
+        dst[x] = clipped(x);
+    }
+    let n = end - start;
+    if n == 0 {
+        return;
+    }
+    let count = rows * (2 * r + 1) as u32;
+    for (((d, &p), &hi), &lo) in dst[start..end]
+        .iter_mut()
+        .zip(&row[start..end])
+        .zip(&prefix[2 * r + 1..][..n])
+        .zip(&prefix[..n])
+    {
+        *d = is_dark(p, offset, hi.wrapping_sub(lo), count);
+    }
+}
+
+/// Adaptive threshold of the working image `src` (`w` x `h`) into `out`, a
+/// `(w + 2) x (h + 2)` buffer with a one-pixel zero border (what the border
+/// follower needs). A pixel becomes 1 (dark, foreground) when it is more
+/// than `offset` grey levels below the mean of the `(2 radius + 1)^2`
+/// window around it (the window is clipped at the image border).
+///
+/// `colsum` and `prefix` are scratch space, resized here; every byte of
+/// `out` is written, so it needs no clearing between frames.
+fn adaptive_threshold_into(
+    src: &mut Rows<'_, '_>,
     radius: usize,
     offset: u8,
     colsum: &mut Vec<u32>,
+    prefix: &mut Vec<u32>,
     out: &mut Vec<u8>,
 ) {
-    let (w, h) = (img.width() as usize, img.height() as usize);
+    let (w, h) = src.size();
     let pw = w + 2;
-    out.clear();
     out.resize(pw * (h + 2), 0);
+    out[..pw].fill(0);
+    out[(h + 1) * pw..].fill(0);
     if w == 0 || h == 0 {
+        out.fill(0);
         return;
     }
     let r = radius.max(1);
+    let off = u32::from(offset);
     colsum.clear();
     colsum.resize(w, 0);
-    // Rows [top, bottom) are summed in colsum.
-    let (mut top, mut bottom) = (0usize, 0usize);
-    let off = u32::from(offset);
+    // Rows [0, r] start in the sums; row y then adds y + r and drops
+    // y - r - 1, each when it exists.
+    let first = (r + 1).min(h);
+    for y in 0..first {
+        src.produce(y);
+        add_row(colsum, src.row(y));
+    }
     for y in 0..h {
-        let want_top = y.saturating_sub(r);
-        let want_bottom = (y + r + 1).min(h);
-        while bottom < want_bottom {
-            let row = img.row(bottom);
-            for (c, &p) in colsum.iter_mut().zip(row) {
-                *c += u32::from(p);
-            }
-            bottom += 1;
+        let (add, drop) = (y + r, y.checked_sub(r + 1));
+        if y > 0 && add < h {
+            src.produce(add);
         }
-        while top < want_top {
-            let row = img.row(top);
-            for (c, &p) in colsum.iter_mut().zip(row) {
-                *c -= u32::from(p);
-            }
-            top += 1;
+        match (y > 0 && add < h, drop) {
+            (true, Some(d)) => slide(colsum, src.row(add), src.row(d)),
+            (true, None) => add_row(colsum, src.row(add)),
+            (false, Some(d)) => sub_row(colsum, src.row(d)),
+            (false, None) => {}
         }
-        let rows = (bottom - top) as u32;
-        let row = img.row(y);
-        let dst = &mut out[(y + 1) * pw + 1..(y + 1) * pw + 1 + w];
-        // Horizontal running sum over colsum: clipped windows at both ends,
-        // a tight loop with a constant count in between.
-        let col = |x: usize| colsum[x];
-        let mut sum: u32 = colsum[..(r + 1).min(w)].iter().sum();
-        let mut x = 0;
-        let threshold = |p: u8, sum: u32, count: u32| u8::from((u32::from(p) + off) * count < sum);
-        // Left border: window [0, x + r].
-        while x < w && x <= r {
-            let right = (x + r + 1).min(w);
-            if x > 0 && x + r < w {
-                sum += col(x + r);
-            }
-            dst[x] = threshold(row[x], sum, rows * right as u32);
-            x += 1;
-        }
-        // Interior: window [x - r, x + r] fully inside.
-        let count = rows * (2 * r + 1) as u32;
-        while x + r < w {
-            sum = sum + col(x + r) - col(x - r - 1);
-            dst[x] = threshold(row[x], sum, count);
-            x += 1;
-        }
-        // Right border: window [x - r, w).
-        while x < w {
-            if x > r {
-                sum -= col(x - r - 1);
-            }
-            dst[x] = threshold(row[x], sum, rows * (w - x.saturating_sub(r)) as u32);
-            x += 1;
-        }
+        let rows = ((y + r + 1).min(h) - y.saturating_sub(r)) as u32;
+        let line = &mut out[(y + 1) * pw..][..pw];
+        line[0] = 0;
+        line[pw - 1] = 0;
+        threshold_row(src.row(y), colsum, rows, r, off, prefix, &mut line[1..=w]);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use proptest::prelude::*;
+
+    /// The straightforward stage this module must match bit for bit: a
+    /// whole downsampled image first, then every window summed directly.
+    fn reference(img: &GrayView<'_>, p: &ThresholdParams) -> (Vec<u8>, Working) {
+        let (w, h) = (img.width() as usize, img.height() as usize);
+        let half = p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE;
+        let (work, ww, wh, scale) = if half {
+            let (w2, h2) = (w / 2, h / 2);
+            let mut d = vec![0u8; w2 * h2];
+            for y in 0..h2 {
+                for x in 0..w2 {
+                    let at = |dx: usize, dy: usize| u16::from(img.row(2 * y + dy)[2 * x + dx]);
+                    d[y * w2 + x] = ((at(0, 0) + at(1, 0) + at(0, 1) + at(1, 1) + 2) >> 2) as u8;
+                }
+            }
+            (d, w2, h2, DOWNSAMPLE_FACTOR)
+        } else {
+            let d = (0..h).flat_map(|y| img.row(y).to_vec()).collect();
+            (d, w, h, 1.0)
+        };
+        let r = p.radius.max(1);
+        let mut out = vec![0u8; (ww + 2) * (wh + 2)];
+        for y in 0..wh {
+            for x in 0..ww {
+                let (mut sum, mut count) = (0u32, 0u32);
+                for yy in y.saturating_sub(r)..(y + r + 1).min(wh) {
+                    for xx in x.saturating_sub(r)..(x + r + 1).min(ww) {
+                        sum += u32::from(work[yy * ww + xx]);
+                        count += 1;
+                    }
+                }
+                let dark = (u32::from(work[y * ww + x]) + u32::from(p.offset)) * count < sum;
+                out[(y + 1) * (ww + 2) + x + 1] = u8::from(dark);
+            }
+        }
+        let size = Working {
+            width: ww,
+            height: wh,
+            scale,
+        };
+        (out, size)
+    }
+
+    fn noise(n: usize, mut seed: u64) -> Vec<u8> {
+        (0..n)
+            .map(|_| {
+                seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                (seed >> 56) as u8
+            })
+            .collect()
+    }
+
+    /// The fused stage on `img`, twice through the same buffers (the
+    /// second time after a frame of another size, so stale contents would
+    /// show).
+    fn fused(img: &GrayView<'_>, p: &ThresholdParams) -> (Vec<u8>, Working) {
+        let (mut s, mut out) = (ThresholdScratch::default(), Vec::new());
+        let other = noise(31 * 17, 9);
+        threshold(&GrayView::packed(&other, 31, 17), p, &mut s, &mut out);
+        out.iter_mut().for_each(|v| *v = 3);
+        let size = threshold(img, p, &mut s, &mut out);
+        (out, size)
+    }
 
     #[test]
     fn downsample_averages_blocks() {
         let src = [0u8, 4, 8, 8, 0, 0, 8, 8, 100, 100, 200, 200];
-        let mut dst = Vec::new();
-        let (w, h) = downsample2(&src, 4, 3, 4, &mut dst);
-        assert_eq!((w, h), (2, 1));
-        assert_eq!(dst, vec![1, 8]);
+        let mut dst = [0u8; 2];
+        downsample_row(&src[..4], &src[4..8], &mut dst);
+        assert_eq!(dst, [1, 8]);
     }
 
     #[test]
-    fn running_sums_match_a_direct_window_mean() {
-        let mut seed = 12345u64;
+    fn matches_the_reference_on_small_cases() {
         for (w, h, r) in [(37, 23, 4), (5, 9, 6), (64, 3, 1), (1, 1, 3), (16, 16, 7)] {
-            let img: Vec<u8> = (0..w * h)
-                .map(|_| {
-                    seed = seed
-                        .wrapping_mul(6364136223846793005)
-                        .wrapping_add(1442695040888963407);
-                    (seed >> 56) as u8
+            for downsample in [false, true] {
+                let img = noise(w * h, (w * 31 + h) as u64);
+                let view = GrayView::packed(&img, w, h);
+                let p = ThresholdParams {
+                    downsample,
+                    radius: r,
+                    offset: 5,
+                };
+                assert_eq!(fused(&view, &p), reference(&view, &p), "{w}x{h} r{r}");
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// Any size (odd ones too), row stride, radius (up to the
+        /// config's 200), offset and grey levels (smooth ramps and noise,
+        /// whose thresholds sit at every level), with and without
+        /// downsampling.
+        #[test]
+        fn matches_the_reference(
+            w in 0usize..90,
+            h in 0usize..70,
+            pad in 0usize..5,
+            radius in prop_oneof![1usize..12, 12usize..=200],
+            offset: u8,
+            downsample: bool,
+            ramp in 0u32..4,
+            seed: u64,
+        ) {
+            let stride = w + pad;
+            let data: Vec<u8> = noise(stride * h, seed)
+                .into_iter()
+                .enumerate()
+                .map(|(i, v)| match ramp {
+                    0 => v,
+                    k => ((i % stride.max(1)) as u32 * k + (i / stride.max(1)) as u32) as u8 / 2 + v / 8,
                 })
                 .collect();
-            let (mut cs, mut out) = (Vec::new(), Vec::new());
-            adaptive_threshold(&GrayView::packed(&img, w, h), r, 5, &mut cs, &mut out);
-            for y in 0..h {
-                for x in 0..w {
-                    let (mut sum, mut count) = (0u32, 0u32);
-                    for yy in y.saturating_sub(r)..(y + r + 1).min(h) {
-                        for xx in x.saturating_sub(r)..(x + r + 1).min(w) {
-                            sum += u32::from(img[yy * w + xx]);
-                            count += 1;
-                        }
-                    }
-                    let want = u8::from((u32::from(img[y * w + x]) + 5) * count < sum);
-                    assert_eq!(
-                        out[(y + 1) * (w + 2) + x + 1],
-                        want,
-                        "{w}x{h} r{r} at {x},{y}"
-                    );
-                }
-            }
+            let view = GrayView::new(&data, w as u32, h as u32, stride).unwrap();
+            let p = ThresholdParams { downsample, radius, offset };
+            prop_assert_eq!(fused(&view, &p), reference(&view, &p));
         }
     }
 
@@ -224,8 +460,13 @@ mod tests {
                 img[y * w + x] = 30;
             }
         }
-        let (mut cs, mut out) = (Vec::new(), Vec::new());
-        adaptive_threshold(&GrayView::packed(&img, w, h), 6, 5, &mut cs, &mut out);
+        let p = ThresholdParams {
+            downsample: false,
+            radius: 6,
+            offset: 5,
+        };
+        let (mut s, mut out) = (ThresholdScratch::default(), Vec::new());
+        threshold(&GrayView::packed(&img, w, h), &p, &mut s, &mut out);
         let at = |x: usize, y: usize| out[(y + 1) * (w + 2) + x + 1];
         assert_eq!(at(5, 5), 1);
         assert_eq!(at(4, 5), 0);

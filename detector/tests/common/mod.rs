@@ -122,10 +122,30 @@ impl Scene {
     }
 
     pub fn render(&self) -> GrayImage {
-        let painter = TagPainter::new(self.family, self.id);
-        let inv = Homography::from_matrix(self.h.matrix().try_inverse().unwrap());
         let mut img =
             GrayImage::from_pixel(self.width, self.height, image::Luma([self.background]));
+        self.paint(&mut img);
+        if self.blur > 0.0 {
+            img = imageproc::filter::gaussian_blur_f32(&img, self.blur);
+        }
+        if self.noise > 0.0 {
+            let mut rng = Rng::new(self.seed);
+            for p in img.pixels_mut() {
+                let v = f64::from(p.0[0]) + rng.gauss() * self.noise;
+                p.0[0] = v.round().clamp(0.0, 255.0) as u8;
+            }
+        }
+        img
+    }
+
+    /// Paints the tag and its occluders over `img` (which must be
+    /// `width` x `height`), without blur or noise: several scenes painted
+    /// into one image make a frame with several tags. Samples off the
+    /// printed tag keep the pixel already in `img` (the plain background
+    /// in [`Scene::render`]).
+    pub fn paint(&self, img: &mut GrayImage) {
+        let painter = TagPainter::new(self.family, self.id);
+        let inv = Homography::from_matrix(self.h.matrix().try_inverse().unwrap());
         // Bounding box of the printed tag (and occluders) in pixels.
         let mut outline: Vec<[f64; 2]> = vec![[-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0], [1.0, -1.0]];
         for o in &self.occluders {
@@ -144,9 +164,9 @@ impl Scene {
         let ya = (y0.floor() - 1.0).max(0.0) as u32;
         let xb = ((x1.ceil() + 1.0).max(0.0) as u32).min(self.width);
         let yb = ((y1.ceil() + 1.0).max(0.0) as u32).min(self.height);
-        let value = |x: f64, y: f64| -> f64 {
+        let value = |x: f64, y: f64, under: f64| -> f64 {
             let Some(t) = inv.map([x, y]) else {
-                return f64::from(self.background);
+                return under;
             };
             for o in self.occluders.iter().rev() {
                 if in_poly(&o.poly, t) {
@@ -154,7 +174,7 @@ impl Scene {
                 }
             }
             if t[0].abs() > 1.0 || t[1].abs() > 1.0 {
-                return f64::from(self.background);
+                return under;
             }
             if painter.black(t) {
                 f64::from(self.black)
@@ -165,6 +185,8 @@ impl Scene {
         for y in ya..yb {
             for x in xa..xb {
                 let (fx, fy) = (f64::from(x), f64::from(y));
+                let under = f64::from(img.get_pixel(x, y).0[0]);
+                let value = |x: f64, y: f64| value(x, y, under);
                 // Adaptive supersampling: uniform pixels need one sample.
                 let c = [
                     value(fx - 0.45, fy - 0.45),
@@ -190,23 +212,15 @@ impl Scene {
                 img.put_pixel(x, y, image::Luma([v.round().clamp(0.0, 255.0) as u8]));
             }
         }
-        if self.blur > 0.0 {
-            img = imageproc::filter::gaussian_blur_f32(&img, self.blur);
-        }
-        if self.noise > 0.0 {
-            let mut rng = Rng::new(self.seed);
-            for p in img.pixels_mut() {
-                let v = f64::from(p.0[0]) + rng.gauss() * self.noise;
-                p.0[0] = v.round().clamp(0.0, 255.0) as u8;
-            }
-        }
-        img
     }
 }
 
 /// Point-in-shape painter for one tag.
 pub struct TagPainter {
     elements: Vec<Element>,
+    /// Per element, the bounding box (x0, y0, x1, y1) of each stroke of
+    /// a [`Shape::Strokes`], grown by half the stroke width.
+    boxes: Vec<Vec<[f64; 4]>>,
     cells: Vec<bool>,
     n: usize,
 }
@@ -215,8 +229,30 @@ impl TagPainter {
     pub fn new(family: &Family, id: u64) -> Self {
         let elements = tag_shapes(family, id).unwrap();
         let cells = coppertag::grid_code::encode_cells(family, id).unwrap();
+        let boxes = elements
+            .iter()
+            .map(|e| match &e.shape {
+                Shape::Strokes { lines, width } => lines
+                    .iter()
+                    .map(|l| {
+                        let r = width / 2.0;
+                        l.iter()
+                            .fold([f64::MAX, f64::MAX, f64::MIN, f64::MIN], |b, q| {
+                                [
+                                    b[0].min(q[0] - r),
+                                    b[1].min(q[1] - r),
+                                    b[2].max(q[0] + r),
+                                    b[3].max(q[1] + r),
+                                ]
+                            })
+                    })
+                    .collect(),
+                _ => Vec::new(),
+            })
+            .collect();
         TagPainter {
             elements,
+            boxes,
             cells,
             n: family.grid(),
         }
@@ -224,15 +260,15 @@ impl TagPainter {
 
     /// Whether tag point `p` (tag units) is black.
     pub fn black(&self, p: [f64; 2]) -> bool {
-        for e in self.elements.iter().rev() {
-            if self.contains(&e.shape, p) {
+        for (e, boxes) in self.elements.iter().zip(&self.boxes).rev() {
+            if self.contains(&e.shape, boxes, p) {
                 return e.paint == Paint::Black;
             }
         }
         false
     }
 
-    fn contains(&self, s: &Shape, p: [f64; 2]) -> bool {
+    fn contains(&self, s: &Shape, boxes: &[[f64; 4]], p: [f64; 2]) -> bool {
         let [x, y] = p;
         match s {
             Shape::Rect { x0, y0, x1, y1 } => x >= *x0 && x < *x1 && y >= *y0 && y < *y1,
@@ -256,9 +292,13 @@ impl TagPainter {
                 // Painted cells are the black ones.
                 self.cells[row as usize * self.n + col as usize]
             }
-            Shape::Strokes { lines, width } => lines
-                .iter()
-                .any(|l| l.windows(2).any(|w| seg_dist(p, w[0], w[1]) <= width / 2.0)),
+            Shape::Strokes { lines, width } => lines.iter().zip(boxes).any(|(l, b)| {
+                // Most samples are far from a digit: its bounding box
+                // answers them without a distance to every segment.
+                (b[0]..=b[2]).contains(&x)
+                    && (b[1]..=b[3]).contains(&y)
+                    && l.windows(2).any(|w| seg_dist(p, w[0], w[1]) <= width / 2.0)
+            }),
         }
     }
 }
