@@ -30,6 +30,7 @@
 //! the candidates over one tag, the reading with the fewest corrections
 //! wins.
 
+use super::bridges::Links;
 use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
 use crate::math::{cross, dot, intersect, norm, sub, unit};
@@ -52,6 +53,9 @@ pub(crate) struct Candidate {
     pub real: usize,
     /// Area (working px^2).
     pub area: f64,
+    /// Found by the linked pass, across borders joined by bridges: such
+    /// candidates are decoded after all others.
+    pub linked: bool,
 }
 
 /// The two line pieces that meet at a detected corner.
@@ -146,6 +150,7 @@ const DUPLICATE_TOL: f64 = 1.5;
 #[derive(Debug, Default)]
 pub(crate) struct QuadScratch {
     group: Vec<u32>,
+    linked: Vec<u32>,
     succ: Vec<[u32; MAX_SUCCESSORS]>,
     nsucc: Vec<u8>,
 }
@@ -212,6 +217,7 @@ fn push(
             anchor,
             real: edges.iter().filter(|s| s.is_some()).count(),
             area,
+            linked: false,
         });
     }
 }
@@ -226,6 +232,7 @@ fn search_group(
     corners: &[Corner],
     group: &[u32],
     anchor: Option<[f64; 2]>,
+    links: Option<&Links>,
     p: &QuadParams,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
@@ -264,7 +271,10 @@ fn search_group(
     }
     let succ = |i: usize| -> &[u32] { &s.succ[i][..s.nsucc[i] as usize] };
     let c = |i: u32| &corners[group[i as usize] as usize];
-    let src = |i: u32| Some(Edges::of(c(i)));
+    // Gap corners are computed, so estimated.
+    let src = |i: u32| (!c(i).gap).then(|| Edges::of(c(i)));
+    // In the linked pass, only paths across borders, along bridges.
+    let across = |path: &[u32]| links.map_or(true, |l| bridged_path(path.iter().map(|&i| c(i)), l));
     for a in 0..k as u32 {
         for &b in succ(a as usize) {
             for &cc in succ(b as usize) {
@@ -279,13 +289,13 @@ fn search_group(
                     if succ(d as usize).contains(&a) {
                         closed = true;
                         // Each cycle once: start at its smallest index.
-                        if a < b && a < cc && a < d {
+                        if a < b && a < cc && a < d && across(&[a, b, cc, d, a]) {
                             let q = [c(a).pos, c(b).pos, c(cc).pos, c(d).pos];
                             push(out, q, [src(a), src(b), src(cc), src(d)], anchor, p);
                         }
                     }
                 }
-                if closed || !p.recover {
+                if closed || !p.recover || !across(&[a, b, cc]) {
                     continue;
                 }
                 // Triangle: a -> b -> cc, fourth corner from the end lines.
@@ -364,13 +374,18 @@ fn faces(c: &Corner, o: [f64; 2]) -> bool {
 
 /// Runs the whole search: per border, then per ellipse.
 pub(crate) fn find_candidates(
-    corners: &[Corner],
+    all_corners: &[Corner],
+    plain: usize,
+    links: &Links,
     ellipses: &[Ellipse],
     p: &QuadParams,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
 ) {
     out.clear();
+    // The gap corners (after `plain`) only join the linked pass: elsewhere
+    // they would pair every computed point with the rest.
+    let corners = &all_corners[..plain];
     // Per border (corners are stored border by border).
     let mut i = 0;
     while i < corners.len() {
@@ -382,7 +397,7 @@ pub(crate) fn find_candidates(
             let mut group = std::mem::take(&mut s.group);
             group.clear();
             group.extend(i as u32..j as u32);
-            search_group(corners, &group, None, p, s, out);
+            search_group(corners, &group, None, None, p, s, out);
             s.group = group;
         }
         i = j;
@@ -400,7 +415,7 @@ pub(crate) fn find_candidates(
             }
         }
         if group.len() >= MIN_ELLIPSE_CORNERS {
-            search_group(corners, &group, Some(o), p, s, out);
+            search_group(corners, &group, Some(o), None, p, s, out);
         }
         s.group = group;
     }
@@ -441,6 +456,7 @@ pub(crate) fn find_candidates(
             out.push(cand);
         }
     }
+    search_linked(all_corners, links, p, s, out);
     // Quads found on a border alone get the tag centre of a checker disc
     // that sits where their diagonals cross: refinement uses it to place
     // hidden corners.
@@ -456,8 +472,14 @@ pub(crate) fn find_candidates(
             .min_by(|a, b| norm(sub(a.anchor, x)).total_cmp(&norm(sub(b.anchor, x))))
             .map(|e| e.anchor);
     }
-    // Best first: more real corners, then larger.
-    out.sort_by(|a, b| b.real.cmp(&a.real).then(b.area.total_cmp(&a.area)));
+    // Best first: linked candidates last, then more real corners, then
+    // larger.
+    out.sort_by(|a, b| {
+        a.linked
+            .cmp(&b.linked)
+            .then(b.real.cmp(&a.real))
+            .then(b.area.total_cmp(&a.area))
+    });
     // Drop near-duplicates (same corners up to a rotation).
     let mut kept = 0;
     for i in 0..out.len() {
@@ -471,6 +493,57 @@ pub(crate) fn find_candidates(
         }
     }
     out.truncate(kept);
+}
+
+/// Whether a path of corners crosses borders only along bridges: it
+/// visits at least two borders, and each step from one border to another
+/// runs along one chain of bridged line pieces (the outgoing line of the
+/// first corner and the incoming line of the next are pieces of one edge).
+fn bridged_path<'a>(path: impl Iterator<Item = &'a Corner> + Clone, links: &Links) -> bool {
+    let mut steps = path.clone().zip(path.skip(1));
+    let mut crossed = false;
+    let ok = steps.all(|(x, y)| {
+        if x.contour == y.contour {
+            return true;
+        }
+        crossed = true;
+        links.chain(x.lines[1]) == links.chain(y.lines[0])
+    });
+    ok && crossed
+}
+
+/// The linked pass: the corners of each linked component of borders (two
+/// or more borders joined by bridges) searched as one group, for quads
+/// across those borders (see [`bridged_path`]). It runs last, so its
+/// candidates never take the place of the other passes' under the cap.
+fn search_linked(
+    corners: &[Corner],
+    links: &Links,
+    p: &QuadParams,
+    s: &mut QuadScratch,
+    out: &mut Vec<Candidate>,
+) {
+    if !links.any() {
+        return;
+    }
+    let mut linked = std::mem::take(&mut s.linked);
+    linked.clear();
+    linked.extend(
+        (0..corners.len() as u32).filter(|&i| links.is_bridged(corners[i as usize].contour)),
+    );
+    linked.sort_by_key(|&i| (links.component(corners[i as usize].contour), i));
+    let first = out.len();
+    for run in linked.chunk_by(|&i, &j| {
+        links.component(corners[i as usize].contour) == links.component(corners[j as usize].contour)
+    }) {
+        if run.len() >= MIN_BORDER_CORNERS {
+            search_group(corners, run, None, Some(links), p, s, out);
+        }
+    }
+    for c in &mut out[first..] {
+        c.linked = true;
+    }
+    s.linked = linked;
 }
 
 fn same_quad(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4], tol: f64) -> bool {
@@ -516,6 +589,8 @@ mod tests {
             seg_in: [back, pos],
             seg_out: [pos, ahead],
             contour,
+            lines: [0, 0],
+            gap: false,
         }
     }
 
@@ -534,6 +609,8 @@ mod tests {
         let mut out = Vec::new();
         find_candidates(
             corners,
+            corners.len(),
+            &Links::default(),
             ellipses,
             &params(),
             &mut QuadScratch::default(),
@@ -590,7 +667,15 @@ mod tests {
                 recover: false,
                 ..params()
             };
-            find_candidates(&corners, &[], &p, &mut QuadScratch::default(), &mut out);
+            find_candidates(
+                &corners,
+                corners.len(),
+                &Links::default(),
+                &[],
+                &p,
+                &mut QuadScratch::default(),
+                &mut out,
+            );
             out
         };
         assert!(no_recovery.is_empty());
