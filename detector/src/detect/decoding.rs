@@ -13,7 +13,7 @@ use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch};
 use super::verify::{verify, Verdict};
 use super::Detection;
-use crate::decode::{decode_quad_with, DecodeParams};
+use crate::decode::{decode_quad_with, DecodeParams, QuadReading};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
@@ -134,7 +134,7 @@ fn read(
         let Some(r) = decode_quad_with(img, &t.family, q, params) else {
             continue;
         };
-        if r.corrected > t.max_corrected {
+        if !within_limit(&r, t.max_corrected) {
             continue;
         }
         if best.as_ref().is_some_and(|b| b.corrected <= r.corrected) {
@@ -159,6 +159,17 @@ fn read(
         });
     }
     best
+}
+
+/// Whether a reading's corrections fit a family's limit: at most `limit`
+/// symbols corrected, or, when the reading erased symbols, errors and
+/// erasures within the same share of the code's capacity with erasures at
+/// half weight (`2 * errors + erased <= 2 * limit`). Reed-Solomon spends one
+/// parity symbol on an erasure and two on an error, so a tag under a light
+/// stick, whose hidden cells read grey and are erased, is not refused for
+/// corrections the code made at half cost.
+fn within_limit(r: &QuadReading, limit: usize) -> bool {
+    r.corrected <= limit || 2 * r.errors + r.erased <= 2 * limit
 }
 
 /// One detection per physical tag, sorted by family and id. Candidates
