@@ -274,7 +274,7 @@ fn search_group(
     // Gap corners are computed, so estimated.
     let src = |i: u32| (!c(i).gap).then(|| Edges::of(c(i)));
     // In the linked pass, only paths across borders, along bridges.
-    let across = |path: &[u32]| links.map_or(true, |l| bridged_path(path.iter().map(|&i| c(i)), l));
+    let across = |path: &[u32]| links.is_none_or(|l| bridged_path(path.iter().map(|&i| c(i)), l));
     for a in 0..k as u32 {
         for &b in succ(a as usize) {
             for &cc in succ(b as usize) {
