@@ -33,6 +33,16 @@ pub(crate) const BRIDGE_MAX_TURN_DEG: f64 = 8.0;
 /// cells of one row are as long as the cells themselves.
 pub(crate) const GAP_PER_LENGTH: f64 = 0.75;
 
+/// Both lines of a gap corner are at least this share of the longest line
+/// of the linked components they come from. A frame side cut by a stick
+/// keeps a piece of at least about a quarter of the data square's side
+/// (the stick leaves its corners clear), and the longest line of the
+/// component is at most the paper's side, about twice the square's; the
+/// edges of a large tag's cells, whose borders bridge each other along
+/// rows, are mostly shorter than four cells (a ct14 grid has 14 a side)
+/// and would otherwise make gap corners with one another everywhere.
+const GAP_CORNER_MIN_SHARE: f64 = 0.125;
+
 /// Each facing end lies within this distance (px) of the other piece's
 /// line, ...
 const BRIDGE_TOL: f64 = 1.5;
@@ -62,6 +72,8 @@ pub(crate) struct Links {
     border_of: Vec<u32>,
     /// Line pairs found (bridges, then gap corners).
     pairs: Vec<(u32, u32)>,
+    /// Per linked component (at its root border): its longest line.
+    longest: Vec<f64>,
 }
 
 impl Links {
@@ -111,7 +123,7 @@ fn length(l: &Line) -> f64 {
 /// most [`GAP_PER_LENGTH`] times the longer piece, each facing end near
 /// the other's line.
 pub(crate) fn continues(a: &Line, b: &Line) -> bool {
-    if dot(a.dir, b.dir) < BRIDGE_MAX_TURN_DEG.to_radians().cos() {
+    if !same_way(a, b) {
         return false;
     }
     let g = sub(b.ps, a.pe);
@@ -121,6 +133,11 @@ pub(crate) fn continues(a: &Line, b: &Line) -> bool {
     }
     let tol = BRIDGE_TOL + BRIDGE_TOL_SLOPE * gap;
     cross(a.dir, g).abs() <= tol && cross(b.dir, g).abs() <= tol
+}
+
+/// Whether two lines run the same way within [`BRIDGE_MAX_TURN_DEG`].
+fn same_way(a: &Line, b: &Line) -> bool {
+    dot(a.dir, b.dir) >= BRIDGE_MAX_TURN_DEG.to_radians().cos()
 }
 
 /// The longer of two lines sees their pair (ties: the lower index).
@@ -140,6 +157,11 @@ fn window<'a>(
     let lo = order.partition_point(|&i| key(&lines[i as usize]) < x - r);
     let hi = order.partition_point(|&i| key(&lines[i as usize]) <= x + r);
     &order[lo..hi]
+}
+
+/// Whether `q` lies within `r` of `p` in y (the window already holds x).
+fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
+    (q[1] - p[1]).abs() <= r
 }
 
 /// Finds the bridges between the lines of `polys` and fills `out`.
@@ -175,13 +197,23 @@ pub(crate) fn find_bridges(polys: &Polygons, out: &mut Links) {
         // Pieces after `a` (starting near its end), then before it.
         for &b in window(lines, &out.by_start, start_x, la.pe[0], r) {
             let b = b as usize;
-            if b != a && sees(lines, a, b) && continues(la, &lines[b]) {
+            if within(lines[b].ps, la.pe, r)
+                && b != a
+                && same_way(la, &lines[b])
+                && sees(lines, a, b)
+                && continues(la, &lines[b])
+            {
                 pairs.push((a as u32, b as u32));
             }
         }
         for &b in window(lines, &out.by_end, end_x, la.ps[0], r) {
             let b = b as usize;
-            if b != a && sees(lines, a, b) && continues(&lines[b], la) {
+            if within(lines[b].pe, la.ps, r)
+                && b != a
+                && same_way(la, &lines[b])
+                && sees(lines, a, b)
+                && continues(&lines[b], la)
+            {
                 pairs.push((b as u32, a as u32));
             }
         }
@@ -251,26 +283,57 @@ pub(crate) fn add_gap_corners(
     let reach = REACH_PER_GAP * p.max_gap;
     let mut pairs = std::mem::take(&mut links.pairs);
     pairs.clear();
+    // The longest line of each component, at its root.
+    links.longest.clear();
+    links.longest.resize(links.bridged.len(), 0.0);
+    for (l, line) in lines.iter().enumerate() {
+        let root = find(&links.border_parent, links.border_of[l]) as usize;
+        links.longest[root] = links.longest[root].max(length(line));
+    }
     let near_bridged = |a: usize, b: usize| {
         links.bridged[links.border_of[a] as usize] || links.bridged[links.border_of[b] as usize]
     };
-    for x in 0..lines.len() {
+    // Both lines long against their components' longest line.
+    let long_enough = |a: usize, b: usize| {
+        let longest =
+            [a, b].map(|l| links.longest[find(&links.border_parent, links.border_of[l]) as usize]);
+        length(&lines[a]).min(length(&lines[b]))
+            >= GAP_CORNER_MIN_SHARE * longest[0].max(longest[1])
+    };
+    // A line shorter than that share of its own component's longest line
+    // cannot be in a gap corner: skip it before looking for partners.
+    let eligible = |l: usize| {
+        let root = find(&links.border_parent, links.border_of[l]) as usize;
+        length(&lines[l]) >= GAP_CORNER_MIN_SHARE * links.longest[root]
+    };
+    for x in (0..lines.len()).filter(|&x| eligible(x)) {
         let lx = &lines[x];
         let r = GAP_PER_LENGTH * length(lx) + reach;
         // `x` arriving at the corner, then `x` leaving it.
         for &y in window(lines, &links.by_start, start_x, lx.pe[0], r) {
             let y = y as usize;
-            if y != x && sees(lines, x, y) && near_bridged(x, y) {
+            if within(lines[y].ps, lx.pe, r)
+                && y != x
+                && near_bridged(x, y)
+                && sees(lines, x, y)
+                && eligible(y)
+            {
                 pairs.push((x as u32, y as u32));
             }
         }
         for &y in window(lines, &links.by_end, end_x, lx.ps[0], r) {
             let y = y as usize;
-            if y != x && sees(lines, x, y) && near_bridged(x, y) {
+            if within(lines[y].pe, lx.ps, r)
+                && y != x
+                && near_bridged(x, y)
+                && sees(lines, x, y)
+                && eligible(y)
+            {
                 pairs.push((y as u32, x as u32));
             }
         }
     }
+    pairs.retain(|&(a, b)| long_enough(a as usize, b as usize));
     for &(a, b) in &pairs {
         let (la, lb) = (&lines[a as usize], &lines[b as usize]);
         let (ca, cb) = (links.border_of[a as usize], links.border_of[b as usize]);

@@ -87,6 +87,12 @@ pub(crate) fn decode_candidates(
             ]
         };
         let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+        // A linked candidate (see `quads`) over a tag already read is
+        // never its rival: on large tags the cells bridge each other and
+        // make many of them.
+        if cand.linked && rival.is_some() {
+            continue;
+        }
         if let Some(r) = rival {
             let f = &found[r];
             if f.det.corrected == 0 || f.rivals >= p.max_rivals {

@@ -142,6 +142,12 @@ const MIN_ELLIPSE_CORNERS: usize = 2;
 /// fraction of the mean side from the crossing of the diagonals.
 const ANCHOR_MATCH: f64 = 0.1;
 
+/// Fewest seen corners of a linked candidate: a stick across the tag
+/// leaves at least two corners with both their sides' pieces long enough
+/// to be lines, and candidates with more computed corners (gap corners,
+/// triangles) over the cells of large tags cost decoding time for nothing.
+const MIN_LINKED_REAL: usize = 2;
+
 /// Two candidates whose corners all agree within this (working px), up to
 /// a rotation, are one.
 const DUPLICATE_TOL: f64 = 1.5;
@@ -540,14 +546,27 @@ fn search_linked(
             search_group(corners, run, None, Some(links), p, s, out);
         }
     }
-    for c in &mut out[first..] {
-        c.linked = true;
+    let mut kept = first;
+    for i in first..out.len() {
+        if out[i].real >= MIN_LINKED_REAL {
+            out[kept] = out[i];
+            out[kept].linked = true;
+            kept += 1;
+        }
     }
+    out.truncate(kept);
     s.linked = linked;
 }
 
 fn same_quad(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4], tol: f64) -> bool {
-    (0..4).any(|r| (0..4).all(|i| norm(sub(a[i], b[(i + r) % 4])) < tol))
+    // Squared distances: this runs on every pair of candidates.
+    let tol2 = tol * tol;
+    (0..4).any(|r| {
+        (0..4).all(|i| {
+            let d = sub(a[i], b[(i + r) % 4]);
+            dot(d, d) < tol2
+        })
+    })
 }
 
 #[cfg(test)]
