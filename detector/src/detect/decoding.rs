@@ -173,9 +173,13 @@ fn read(
 /// half weight (`2 * errors + erased <= 2 * limit`). Reed-Solomon spends one
 /// parity symbol on an erasure and two on an error, so a tag under a light
 /// stick, whose hidden cells read grey and are erased, is not refused for
-/// corrections the code made at half cost.
+/// corrections the code made at half cost. The erasures themselves stay
+/// within `limit`: an erased symbol matches any id, and a reading resting
+/// on more of them than the limit says too little about the quad (on the
+/// robustness set, 13 erasures read a tag through a quad with a corner
+/// 9 px off).
 fn within_limit(r: &QuadReading, limit: usize) -> bool {
-    r.corrected <= limit || 2 * r.errors + r.erased <= 2 * limit
+    r.corrected <= limit || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
 }
 
 /// One detection per physical tag, sorted by family and id. Candidates
