@@ -385,6 +385,28 @@ mod tests {
     }
 
     #[test]
+    fn a_corner_forms_across_a_cut_next_to_it() {
+        let p = CornerParams {
+            sin_min_angle: 22.5f64.to_radians().sin(),
+            max_gap: 7.0,
+        };
+        // The right side up to (60, 20); the top side's piece starts 20 px
+        // on, past a stick that hid the piece next to the corner.
+        let right = line([60.0, 60.0], [60.0, 20.0]);
+        let top = line([40.0, 20.0], [0.0, 20.0]);
+        let x = gap_corner(&right, &top, false, &p).expect("gap corner");
+        assert!(norm(sub(x, [60.0, 20.0])) < 1e-9, "{x:?}");
+        // Clockwise (a reflex corner of the white square): none.
+        let turned = line([80.0, 20.0], [120.0, 20.0]);
+        assert!(gap_corner(&right, &turned, false, &p).is_none());
+        // Both ends at the point: a plain corner, left to `corners` unless
+        // the lines are apart.
+        let near = line([60.0, 20.0], [20.0, 20.0]);
+        assert!(gap_corner(&right, &near, false, &p).is_none());
+        assert!(gap_corner(&right, &near, true, &p).is_some());
+    }
+
+    #[test]
     fn bridged_pieces_link_their_borders() {
         let mut polys = Polygons::default();
         polys.lines = vec![

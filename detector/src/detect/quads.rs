@@ -744,6 +744,48 @@ mod tests {
     }
 
     #[test]
+    fn linked_borders_close_a_quad_across_a_cut() {
+        // A stick down the middle cuts the top and bottom sides: TL, BL on
+        // border 0, BR, TR on border 1, no ellipse. The bottom and top
+        // sides' pieces continue each other across a 10 px gap.
+        use crate::detect::bridges::find_bridges;
+        use crate::detect::lines::{Line, Polygons};
+        let line = |ps: [f64; 2], pe: [f64; 2]| Line {
+            ps,
+            pe,
+            dir: unit(sub(pe, ps)),
+        };
+        let mut polys = Polygons::default();
+        polys.lines = vec![
+            line(TL, BL),
+            line(BL, [35.0, 60.0]),
+            line([35.0, 20.0], TL),
+            line([45.0, 60.0], BR),
+            line(BR, TR),
+            line(TR, [45.0, 20.0]),
+        ];
+        polys.line_ranges = vec![(0, 3), (3, 6)];
+        let mut links = Links::default();
+        find_bridges(&polys, &mut links);
+        let with = |mut c: Corner, lines: [u32; 2]| {
+            c.lines = lines;
+            c
+        };
+        let corners = [
+            with(corner(TR, TL, BL, 0), [2, 0]),
+            with(corner(TL, BL, BR, 0), [0, 1]),
+            with(corner(BL, BR, TR, 1), [3, 4]),
+            with(corner(BR, TR, TL, 1), [4, 5]),
+        ];
+        assert!(the_tag(&search(&corners, &[])).is_none());
+        let mut out = Vec::new();
+        let s = &mut QuadScratch::default();
+        find_candidates(&corners, 4, &links, &[], &params(), s, &mut out);
+        assert_eq!(the_tag(&out), Some([false; 4]), "{out:?}");
+        assert!(out.iter().all(|c| c.linked));
+    }
+
+    #[test]
     fn a_corner_off_its_side_is_not_a_successor() {
         let a = corner(TR, TL, BL, 0);
         let b = corner(TL, BL, BR, 0);
