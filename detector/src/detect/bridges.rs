@@ -13,6 +13,12 @@
 //! quads across the borders of each linked component whose cross-border
 //! sides run along one chain (see `quads`).
 //!
+//! Where the stick passes close to a corner, the piece of the side next to
+//! the corner is shorter than tau and no line, so no corner forms there.
+//! A gap corner is then where the side's line across the gap meets the
+//! other side's line (see [`gap_corner`]); gap corners are looked for only
+//! around linked borders, and only the linked quad search uses them.
+//!
 //! Pairs are found without comparing every two lines: lines are sorted by
 //! the x of their start and of their end point, and each line looks only
 //! at the lines whose facing end lies within its reach in x. Each pair is
@@ -24,14 +30,14 @@ use crate::math::{cross, dot, intersect, norm, sub};
 
 /// Two pieces of one edge turn by at most this (degrees): the fit of a
 /// short piece wanders by a few degrees, a different edge turns by more.
-pub(crate) const BRIDGE_MAX_TURN_DEG: f64 = 8.0;
+const BRIDGE_MAX_TURN_DEG: f64 = 8.0;
 
 /// The gap between two pieces is at most this many times the longer
 /// piece: a stick across a side leaves at least one piece of the side
 /// longer than about half of the gap it cuts (sticks cross at steep
 /// angles, or they would cover a corner), while the gaps between the
 /// cells of one row are as long as the cells themselves.
-pub(crate) const GAP_PER_LENGTH: f64 = 0.75;
+const GAP_PER_LENGTH: f64 = 0.75;
 
 /// Both lines of a gap corner are at least this share of the longest line
 /// of the linked components they come from. A frame side cut by a stick
@@ -99,8 +105,8 @@ impl Links {
     }
 }
 
-/// Root of `i` (no path compression: the forests stay shallow because
-/// [`union`] hangs the larger index under the smaller).
+/// Root of `i`. No path compression, so that lookups need no `&mut`: the
+/// chains and components of one frame hold a handful of lines or borders.
 fn find(parent: &[u32], mut i: u32) -> u32 {
     while parent[i as usize] != i {
         i = parent[i as usize];
@@ -122,7 +128,7 @@ fn length(l: &Line) -> f64 {
 /// within [`BRIDGE_MAX_TURN_DEG`], `b` starting ahead of `a`'s end by at
 /// most [`GAP_PER_LENGTH`] times the longer piece, each facing end near
 /// the other's line.
-pub(crate) fn continues(a: &Line, b: &Line) -> bool {
+fn continues(a: &Line, b: &Line) -> bool {
     if !same_way(a, b) {
         return false;
     }

@@ -21,7 +21,11 @@
 //! Every corner a case had to compute is marked estimated. The search runs
 //! first on each border's own corners (tags found without any ellipse),
 //! then on the corners around each ellipse, keeping only corners whose
-//! inside (the cone between their two lines) faces the anchor. Candidates
+//! inside (the cone between their two lines) faces the anchor, and last on
+//! each linked component of borders (see `bridges`: a stick across the
+//! frame splits the square's border), with its gap corners, keeping the
+//! 4-cycles and triangles that cross borders only along bridged sides;
+//! those linked candidates are decoded after all others. Candidates
 //! are sorted real corners first, larger first, and near-duplicates
 //! dropped. An estimated corner with a detected corner beside it also
 //! gives a second candidate that uses the detected one (the paper's
