@@ -26,6 +26,10 @@ pub struct QuadReading {
     pub corners: [[f64; 2]; 4],
     /// Symbols the Reed-Solomon decoder corrected.
     pub corrected: usize,
+    /// Symbols read as erasures (see [`crate::grid_code::GridReading`]).
+    pub erased: usize,
+    /// Symbols corrected that were not erased.
+    pub errors: usize,
     /// Quarter turns between the corner list given and the canonical one.
     pub rotation: usize,
     /// Contrast between the measured white and black levels (0..255).
@@ -266,6 +270,8 @@ fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> Qu
         id: r.id,
         corners: canonical,
         corrected: r.corrected,
+        erased: r.erased,
+        errors: r.errors,
         rotation: d,
         contrast,
     }

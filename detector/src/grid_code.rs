@@ -59,6 +59,12 @@ pub struct GridReading {
     pub rotation: usize,
     /// Symbols the Reed-Solomon decoder corrected.
     pub corrected: usize,
+    /// Symbols read as erasures (a cell of theirs was erased).
+    pub erased: usize,
+    /// Symbols corrected that were not erased: the errors. An error costs
+    /// the code twice the capacity of an erasure, so a reading's load is
+    /// `2 * errors + erased` of the code's parity symbols.
+    pub errors: usize,
 }
 
 /// Reads a grid of cell colours (`true` = black, row-major, as seen) at all
@@ -136,12 +142,20 @@ pub fn decode_cells_at(
     if n_erased > code.parity() {
         return None;
     }
+    let mut seen_word = [0u8; 256];
+    seen_word[..nsym].copy_from_slice(word);
     let corrected = code.decode(word, &erasures[..n_erased]).ok()?;
+    let erased = &erasures[..n_erased];
+    let errors = (0..nsym)
+        .filter(|&s| word[s] != seen_word[s] && !erased.contains(&s))
+        .count();
     let (id, verify) = family.id_from_data(&word[..code.k()])?;
     (verify == family.verify_symbol(id)).then_some(GridReading {
         id,
         rotation: d % 4,
         corrected,
+        erased: n_erased,
+        errors,
     })
 }
 

@@ -31,6 +31,13 @@ pub(crate) struct Corner {
     pub seg_out: Segment,
     /// Contour the lines came from.
     pub contour: u32,
+    /// The incoming and outgoing lines (indices into the frame's lines):
+    /// the quad search asks whether a side runs along one chain of
+    /// bridged pieces (see `bridges`).
+    pub lines: [u32; 2],
+    /// A gap corner (see `bridges`): its lines meet across a gap cut by an
+    /// occluder, so the point itself is computed, not seen.
+    pub gap: bool,
 }
 
 /// Corner-forming parameters, from [`crate::DetectorConfig`].
@@ -47,7 +54,7 @@ pub(crate) struct CornerParams {
 /// The intersection of a corner's two lines may lie at most this many times
 /// psi from each facing line end: a shallow intersection far away is not a
 /// corner.
-const REACH_PER_GAP: f64 = 2.0;
+pub(crate) const REACH_PER_GAP: f64 = 2.0;
 
 fn corner(
     lines: &[Line],
@@ -90,6 +97,8 @@ fn corner(
         seg_in: [li.ps, li.pe],
         seg_out: [lo.ps, lo.pe],
         contour,
+        lines: [lin as u32, lout as u32],
+        gap: false,
     })
 }
 

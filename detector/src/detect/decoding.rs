@@ -13,7 +13,7 @@ use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch};
 use super::verify::{verify, Verdict};
 use super::Detection;
-use crate::decode::{decode_quad_with, DecodeParams};
+use crate::decode::{decode_quad_with, DecodeParams, QuadReading};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
@@ -87,6 +87,12 @@ pub(crate) fn decode_candidates(
             ]
         };
         let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+        // A linked candidate (see `quads`) over a tag already read is
+        // never its rival: on large tags the cells bridge each other and
+        // make many of them.
+        if cand.linked && rival.is_some() {
+            continue;
+        }
         if let Some(r) = rival {
             let f = &found[r];
             if f.det.corrected == 0 || f.rivals >= p.max_rivals {
@@ -134,7 +140,7 @@ fn read(
         let Some(r) = decode_quad_with(img, &t.family, q, params) else {
             continue;
         };
-        if r.corrected > t.max_corrected {
+        if !within_limit(&r, t.max_corrected) {
             continue;
         }
         if best.as_ref().is_some_and(|b| b.corrected <= r.corrected) {
@@ -159,6 +165,21 @@ fn read(
         });
     }
     best
+}
+
+/// Whether a reading's corrections fit a family's limit: at most `limit`
+/// symbols corrected, or, when the reading erased symbols, errors and
+/// erasures within the same share of the code's capacity with erasures at
+/// half weight (`2 * errors + erased <= 2 * limit`). Reed-Solomon spends one
+/// parity symbol on an erasure and two on an error, so a tag under a light
+/// stick, whose hidden cells read grey and are erased, is not refused for
+/// corrections the code made at half cost. The erasures themselves stay
+/// within `limit`: an erased symbol matches any id, and a reading resting
+/// on more of them than the limit says too little about the quad (on the
+/// robustness set, 13 erasures read a tag through a quad with a corner
+/// 9 px off).
+fn within_limit(r: &QuadReading, limit: usize) -> bool {
+    r.corrected <= limit || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
 }
 
 /// One detection per physical tag, sorted by family and id. Candidates

@@ -8,8 +8,10 @@
 //!
 //! 1. `threshold`: optional 2x downsampling, adaptive mean threshold;
 //! 2. `contours`: border following (Suzuki & Abe 1985);
-//! 3. `lines` and `corners`: Douglas-Peucker, line fits oriented dark
-//!    on the right, anticlockwise corners (the paper's Algorithm 1);
+//! 3. `lines`, `corners` and `bridges`: Douglas-Peucker, line fits
+//!    oriented dark on the right, anticlockwise corners (the paper's
+//!    Algorithm 1); line pieces of one edge cut by an occluder bridged
+//!    across the gap, linking their borders;
 //! 4. `ellipses`: the disc rim as ellipse candidates from arcs, robust to
 //!    a partly hidden rim;
 //! 5. `quads`: candidate quads, with the triangle, same-side, symmetry and
@@ -31,6 +33,7 @@
 //! settings. The detector owns its buffers and resizes them per frame;
 //! nothing has to be reset by callers.
 
+pub(crate) mod bridges;
 mod config;
 pub(crate) mod contours;
 pub(crate) mod corners;
@@ -244,6 +247,7 @@ struct Segmentation {
     binary: Vec<u8>,
     contours: contours::Contours,
     polys: lines::Polygons,
+    links: bridges::Links,
     corners: Vec<corners::Corner>,
     ellipses: Vec<ellipses::Ellipse>,
     escratch: ellipses::EllipseScratch,
@@ -272,6 +276,9 @@ impl Segmentation {
         lines::extract(&self.contours, &p.lines, &mut self.polys);
         times.lines += laps.lap();
         corners::find_corners(&self.polys, &p.corners, &mut self.corners);
+        bridges::find_bridges(&self.polys, &mut self.links);
+        let plain = self.corners.len();
+        bridges::add_gap_corners(&self.polys, &p.corners, &mut self.links, &mut self.corners);
         times.corners += laps.lap();
         ellipses::find_ellipses(
             &self.contours,
@@ -284,6 +291,8 @@ impl Segmentation {
         times.ellipses += laps.lap();
         quads::find_candidates(
             &self.corners,
+            plain,
+            &self.links,
             &self.ellipses,
             &p.quads,
             &mut self.qscratch,

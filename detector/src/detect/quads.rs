@@ -21,7 +21,11 @@
 //! Every corner a case had to compute is marked estimated. The search runs
 //! first on each border's own corners (tags found without any ellipse),
 //! then on the corners around each ellipse, keeping only corners whose
-//! inside (the cone between their two lines) faces the anchor. Candidates
+//! inside (the cone between their two lines) faces the anchor, and last on
+//! each linked component of borders (see `bridges`: a stick across the
+//! frame splits the square's border), with its gap corners, keeping the
+//! 4-cycles and triangles that cross borders only along bridged sides;
+//! those linked candidates are decoded after all others. Candidates
 //! are sorted real corners first, larger first, and near-duplicates
 //! dropped. An estimated corner with a detected corner beside it also
 //! gives a second candidate that uses the detected one (the paper's
@@ -30,6 +34,7 @@
 //! the candidates over one tag, the reading with the fewest corrections
 //! wins.
 
+use super::bridges::Links;
 use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
 use crate::math::{cross, dot, intersect, norm, sub, unit};
@@ -52,6 +57,9 @@ pub(crate) struct Candidate {
     pub real: usize,
     /// Area (working px^2).
     pub area: f64,
+    /// Found by the linked pass, across borders joined by bridges: such
+    /// candidates are decoded after all others.
+    pub linked: bool,
 }
 
 /// The two line pieces that meet at a detected corner.
@@ -138,6 +146,12 @@ const MIN_ELLIPSE_CORNERS: usize = 2;
 /// fraction of the mean side from the crossing of the diagonals.
 const ANCHOR_MATCH: f64 = 0.1;
 
+/// Fewest seen corners of a linked candidate: a stick across the tag
+/// leaves at least two corners with both their sides' pieces long enough
+/// to be lines, and candidates with more computed corners (gap corners,
+/// triangles) over the cells of large tags cost decoding time for nothing.
+const MIN_LINKED_REAL: usize = 2;
+
 /// Two candidates whose corners all agree within this (working px), up to
 /// a rotation, are one.
 const DUPLICATE_TOL: f64 = 1.5;
@@ -146,6 +160,7 @@ const DUPLICATE_TOL: f64 = 1.5;
 #[derive(Debug, Default)]
 pub(crate) struct QuadScratch {
     group: Vec<u32>,
+    linked: Vec<u32>,
     succ: Vec<[u32; MAX_SUCCESSORS]>,
     nsucc: Vec<u8>,
 }
@@ -212,6 +227,7 @@ fn push(
             anchor,
             real: edges.iter().filter(|s| s.is_some()).count(),
             area,
+            linked: false,
         });
     }
 }
@@ -226,6 +242,7 @@ fn search_group(
     corners: &[Corner],
     group: &[u32],
     anchor: Option<[f64; 2]>,
+    links: Option<&Links>,
     p: &QuadParams,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
@@ -264,7 +281,10 @@ fn search_group(
     }
     let succ = |i: usize| -> &[u32] { &s.succ[i][..s.nsucc[i] as usize] };
     let c = |i: u32| &corners[group[i as usize] as usize];
-    let src = |i: u32| Some(Edges::of(c(i)));
+    // Gap corners are computed, so estimated.
+    let src = |i: u32| (!c(i).gap).then(|| Edges::of(c(i)));
+    // In the linked pass, only paths across borders, along bridges.
+    let across = |path: &[u32]| links.is_none_or(|l| bridged_path(path.iter().map(|&i| c(i)), l));
     for a in 0..k as u32 {
         for &b in succ(a as usize) {
             for &cc in succ(b as usize) {
@@ -279,13 +299,13 @@ fn search_group(
                     if succ(d as usize).contains(&a) {
                         closed = true;
                         // Each cycle once: start at its smallest index.
-                        if a < b && a < cc && a < d {
+                        if a < b && a < cc && a < d && across(&[a, b, cc, d, a]) {
                             let q = [c(a).pos, c(b).pos, c(cc).pos, c(d).pos];
                             push(out, q, [src(a), src(b), src(cc), src(d)], anchor, p);
                         }
                     }
                 }
-                if closed || !p.recover {
+                if closed || !p.recover || !across(&[a, b, cc]) {
                     continue;
                 }
                 // Triangle: a -> b -> cc, fourth corner from the end lines.
@@ -364,13 +384,18 @@ fn faces(c: &Corner, o: [f64; 2]) -> bool {
 
 /// Runs the whole search: per border, then per ellipse.
 pub(crate) fn find_candidates(
-    corners: &[Corner],
+    all_corners: &[Corner],
+    plain: usize,
+    links: &Links,
     ellipses: &[Ellipse],
     p: &QuadParams,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
 ) {
     out.clear();
+    // The gap corners (after `plain`) only join the linked pass: elsewhere
+    // they would pair every computed point with the rest.
+    let corners = &all_corners[..plain];
     // Per border (corners are stored border by border).
     let mut i = 0;
     while i < corners.len() {
@@ -382,7 +407,7 @@ pub(crate) fn find_candidates(
             let mut group = std::mem::take(&mut s.group);
             group.clear();
             group.extend(i as u32..j as u32);
-            search_group(corners, &group, None, p, s, out);
+            search_group(corners, &group, None, None, p, s, out);
             s.group = group;
         }
         i = j;
@@ -400,7 +425,7 @@ pub(crate) fn find_candidates(
             }
         }
         if group.len() >= MIN_ELLIPSE_CORNERS {
-            search_group(corners, &group, Some(o), p, s, out);
+            search_group(corners, &group, Some(o), None, p, s, out);
         }
         s.group = group;
     }
@@ -441,6 +466,7 @@ pub(crate) fn find_candidates(
             out.push(cand);
         }
     }
+    search_linked(all_corners, links, p, s, out);
     // Quads found on a border alone get the tag centre of a checker disc
     // that sits where their diagonals cross: refinement uses it to place
     // hidden corners.
@@ -456,8 +482,14 @@ pub(crate) fn find_candidates(
             .min_by(|a, b| norm(sub(a.anchor, x)).total_cmp(&norm(sub(b.anchor, x))))
             .map(|e| e.anchor);
     }
-    // Best first: more real corners, then larger.
-    out.sort_by(|a, b| b.real.cmp(&a.real).then(b.area.total_cmp(&a.area)));
+    // Best first: linked candidates last, then more real corners, then
+    // larger.
+    out.sort_by(|a, b| {
+        a.linked
+            .cmp(&b.linked)
+            .then(b.real.cmp(&a.real))
+            .then(b.area.total_cmp(&a.area))
+    });
     // Drop near-duplicates (same corners up to a rotation).
     let mut kept = 0;
     for i in 0..out.len() {
@@ -473,8 +505,72 @@ pub(crate) fn find_candidates(
     out.truncate(kept);
 }
 
+/// Whether a path of corners crosses borders only along bridges: it
+/// visits at least two borders, and each step from one border to another
+/// runs along one chain of bridged line pieces (the outgoing line of the
+/// first corner and the incoming line of the next are pieces of one edge).
+fn bridged_path<'a>(path: impl Iterator<Item = &'a Corner> + Clone, links: &Links) -> bool {
+    let mut steps = path.clone().zip(path.skip(1));
+    let mut crossed = false;
+    let ok = steps.all(|(x, y)| {
+        if x.contour == y.contour {
+            return true;
+        }
+        crossed = true;
+        links.chain(x.lines[1]) == links.chain(y.lines[0])
+    });
+    ok && crossed
+}
+
+/// The linked pass: the corners of each linked component of borders (two
+/// or more borders joined by bridges) searched as one group, for quads
+/// across those borders (see [`bridged_path`]). It runs last, so its
+/// candidates never take the place of the other passes' under the cap.
+fn search_linked(
+    corners: &[Corner],
+    links: &Links,
+    p: &QuadParams,
+    s: &mut QuadScratch,
+    out: &mut Vec<Candidate>,
+) {
+    if !links.any() {
+        return;
+    }
+    let mut linked = std::mem::take(&mut s.linked);
+    linked.clear();
+    linked.extend(
+        (0..corners.len() as u32).filter(|&i| links.is_bridged(corners[i as usize].contour)),
+    );
+    linked.sort_by_key(|&i| (links.component(corners[i as usize].contour), i));
+    let first = out.len();
+    for run in linked.chunk_by(|&i, &j| {
+        links.component(corners[i as usize].contour) == links.component(corners[j as usize].contour)
+    }) {
+        if run.len() >= MIN_BORDER_CORNERS {
+            search_group(corners, run, None, Some(links), p, s, out);
+        }
+    }
+    let mut kept = first;
+    for i in first..out.len() {
+        if out[i].real >= MIN_LINKED_REAL {
+            out[kept] = out[i];
+            out[kept].linked = true;
+            kept += 1;
+        }
+    }
+    out.truncate(kept);
+    s.linked = linked;
+}
+
 fn same_quad(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4], tol: f64) -> bool {
-    (0..4).any(|r| (0..4).all(|i| norm(sub(a[i], b[(i + r) % 4])) < tol))
+    // Squared distances: this runs on every pair of candidates.
+    let tol2 = tol * tol;
+    (0..4).any(|r| {
+        (0..4).all(|i| {
+            let d = sub(a[i], b[(i + r) % 4]);
+            dot(d, d) < tol2
+        })
+    })
 }
 
 #[cfg(test)]
@@ -516,6 +612,8 @@ mod tests {
             seg_in: [back, pos],
             seg_out: [pos, ahead],
             contour,
+            lines: [0, 0],
+            gap: false,
         }
     }
 
@@ -534,6 +632,8 @@ mod tests {
         let mut out = Vec::new();
         find_candidates(
             corners,
+            corners.len(),
+            &Links::default(),
             ellipses,
             &params(),
             &mut QuadScratch::default(),
@@ -590,7 +690,15 @@ mod tests {
                 recover: false,
                 ..params()
             };
-            find_candidates(&corners, &[], &p, &mut QuadScratch::default(), &mut out);
+            find_candidates(
+                &corners,
+                corners.len(),
+                &Links::default(),
+                &[],
+                &p,
+                &mut QuadScratch::default(),
+                &mut out,
+            );
             out
         };
         assert!(no_recovery.is_empty());
@@ -637,6 +745,48 @@ mod tests {
             Some([false, true, false, true]),
             "{cands:?}"
         );
+    }
+
+    #[test]
+    fn linked_borders_close_a_quad_across_a_cut() {
+        // A stick down the middle cuts the top and bottom sides: TL, BL on
+        // border 0, BR, TR on border 1, no ellipse. The bottom and top
+        // sides' pieces continue each other across a 10 px gap.
+        use crate::detect::bridges::find_bridges;
+        use crate::detect::lines::{Line, Polygons};
+        let line = |ps: [f64; 2], pe: [f64; 2]| Line {
+            ps,
+            pe,
+            dir: unit(sub(pe, ps)),
+        };
+        let mut polys = Polygons::default();
+        polys.lines = vec![
+            line(TL, BL),
+            line(BL, [35.0, 60.0]),
+            line([35.0, 20.0], TL),
+            line([45.0, 60.0], BR),
+            line(BR, TR),
+            line(TR, [45.0, 20.0]),
+        ];
+        polys.line_ranges = vec![(0, 3), (3, 6)];
+        let mut links = Links::default();
+        find_bridges(&polys, &mut links);
+        let with = |mut c: Corner, lines: [u32; 2]| {
+            c.lines = lines;
+            c
+        };
+        let corners = [
+            with(corner(TR, TL, BL, 0), [2, 0]),
+            with(corner(TL, BL, BR, 0), [0, 1]),
+            with(corner(BL, BR, TR, 1), [3, 4]),
+            with(corner(BR, TR, TL, 1), [4, 5]),
+        ];
+        assert!(the_tag(&search(&corners, &[])).is_none());
+        let mut out = Vec::new();
+        let s = &mut QuadScratch::default();
+        find_candidates(&corners, 4, &links, &[], &params(), s, &mut out);
+        assert_eq!(the_tag(&out), Some([false; 4]), "{out:?}");
+        assert!(out.iter().all(|c| c.linked));
     }
 
     #[test]
