@@ -166,6 +166,35 @@ fn window<'a>(
 }
 
 /// Whether `q` lies within `r` of `p` in y (the window already holds x).
+/// Calls `visit(y, from, to)` for every line `y` whose end faces an end of
+/// line `x` within `r` and which `x` sees ([`sees`]): first the lines
+/// starting near `x`'s end (`from` = `x`, `to` = `y`), then those ending
+/// near its start (`from` = `y`, `to` = `x`), each in the order of
+/// `by_start` or `by_end`. The one neighbour search of the bridges and the
+/// gap corners.
+fn facing(
+    lines: &[Line],
+    by_start: &[u32],
+    by_end: &[u32],
+    x: usize,
+    r: f64,
+    mut visit: impl FnMut(usize, usize, usize),
+) {
+    let lx = &lines[x];
+    for &y in window(lines, by_start, |l| l.ps[0], lx.pe[0], r) {
+        let y = y as usize;
+        if within(lines[y].ps, lx.pe, r) && y != x && sees(lines, x, y) {
+            visit(y, x, y);
+        }
+    }
+    for &y in window(lines, by_end, |l| l.pe[0], lx.ps[0], r) {
+        let y = y as usize;
+        if within(lines[y].pe, lx.ps, r) && y != x && sees(lines, x, y) {
+            visit(y, y, x);
+        }
+    }
+}
+
 fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
     (q[1] - p[1]).abs() <= r
 }
@@ -200,29 +229,11 @@ pub(crate) fn find_bridges(polys: &Polygons, out: &mut Links) {
     for a in 0..n {
         let la = &lines[a];
         let r = GAP_PER_LENGTH * length(la) + BRIDGE_OVERLAP;
-        // Pieces after `a` (starting near its end), then before it.
-        for &b in window(lines, &out.by_start, start_x, la.pe[0], r) {
-            let b = b as usize;
-            if within(lines[b].ps, la.pe, r)
-                && b != a
-                && same_way(la, &lines[b])
-                && sees(lines, a, b)
-                && continues(la, &lines[b])
-            {
-                pairs.push((a as u32, b as u32));
+        facing(lines, &out.by_start, &out.by_end, a, r, |b, from, to| {
+            if same_way(la, &lines[b]) && continues(&lines[from], &lines[to]) {
+                pairs.push((from as u32, to as u32));
             }
-        }
-        for &b in window(lines, &out.by_end, end_x, la.ps[0], r) {
-            let b = b as usize;
-            if within(lines[b].pe, la.ps, r)
-                && b != a
-                && same_way(la, &lines[b])
-                && sees(lines, a, b)
-                && continues(&lines[b], la)
-            {
-                pairs.push((b as u32, a as u32));
-            }
-        }
+        });
     }
     for &(a, b) in &pairs {
         union(&mut out.line_parent, a, b);
@@ -284,8 +295,6 @@ pub(crate) fn add_gap_corners(
         return;
     }
     let lines = &polys.lines;
-    let start_x = |l: &Line| l.ps[0];
-    let end_x = |l: &Line| l.pe[0];
     let reach = REACH_PER_GAP * p.max_gap;
     let mut pairs = std::mem::take(&mut links.pairs);
     pairs.clear();
@@ -313,31 +322,19 @@ pub(crate) fn add_gap_corners(
         length(&lines[l]) >= GAP_CORNER_MIN_SHARE * links.longest[root]
     };
     for x in (0..lines.len()).filter(|&x| eligible(x)) {
-        let lx = &lines[x];
-        let r = GAP_PER_LENGTH * length(lx) + reach;
-        // `x` arriving at the corner, then `x` leaving it.
-        for &y in window(lines, &links.by_start, start_x, lx.pe[0], r) {
-            let y = y as usize;
-            if within(lines[y].ps, lx.pe, r)
-                && y != x
-                && near_bridged(x, y)
-                && sees(lines, x, y)
-                && eligible(y)
-            {
-                pairs.push((x as u32, y as u32));
-            }
-        }
-        for &y in window(lines, &links.by_end, end_x, lx.ps[0], r) {
-            let y = y as usize;
-            if within(lines[y].pe, lx.ps, r)
-                && y != x
-                && near_bridged(x, y)
-                && sees(lines, x, y)
-                && eligible(y)
-            {
-                pairs.push((y as u32, x as u32));
-            }
-        }
+        let r = GAP_PER_LENGTH * length(&lines[x]) + reach;
+        facing(
+            lines,
+            &links.by_start,
+            &links.by_end,
+            x,
+            r,
+            |y, from, to| {
+                if near_bridged(x, y) && eligible(y) {
+                    pairs.push((from as u32, to as u32));
+                }
+            },
+        );
     }
     pairs.retain(|&(a, b)| long_enough(a as usize, b as usize));
     for &(a, b) in &pairs {
