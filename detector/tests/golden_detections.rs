@@ -119,14 +119,13 @@ fn report() -> (String, Vec<String>) {
     for (name, img, truth) in fixture_images().into_iter().chain(rendered_scenes()) {
         let found = det.detect(&img);
         if let Some((id, corners)) = truth {
-            let side = (0..4)
-                .map(|k| dist(corners[k], corners[(k + 1) % 4]))
-                .sum::<f64>()
-                / 4.0;
+            // The sides are the distances from each corner to the next.
+            let next = std::array::from_fn(|k| corners[(k + 1) % 4]);
+            let side = corner_errors(&corners, &next).iter().sum::<f64>() / 4.0;
             let allowed = (0.05 * side).max(3.0);
             for d in &found {
-                let err = (0..4)
-                    .map(|k| dist(d.corners[k], corners[k]))
+                let err = corner_errors(&d.corners, &corners)
+                    .into_iter()
                     .fold(0.0, f64::max);
                 if d.id != id || err > allowed {
                     wrong.push(format!("{} (corner error {err:.2} px)", line(&name, d)));
@@ -141,10 +140,6 @@ fn report() -> (String, Vec<String>) {
         }
     }
     (out, wrong)
-}
-
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
 #[test]
