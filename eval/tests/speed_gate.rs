@@ -8,6 +8,8 @@
 use coppertag_eval::gate::{baseline_of, check_speed, Tolerances};
 use coppertag_eval::speed::{confirm_failures, estimate, SpeedReport};
 
+mod common;
+
 fn saved_run() -> SpeedReport {
     let text = include_str!("fixtures/speed-run.json");
     serde_json::from_str(text).expect("the fixture is a speed report")
@@ -123,4 +125,34 @@ fn only_failing_peers_are_measured_again_and_the_second_measurement_decides() {
         })
     });
     assert!(err.is_err());
+}
+
+#[test]
+fn a_bad_confirm_baseline_is_a_named_error_before_any_measurement() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("baseline.json");
+    std::fs::write(&bad, "{\"entries\": 3}").unwrap();
+    for (path, says) in [
+        (dir.path().join("missing.json"), "cannot read"),
+        (bad, "not a baseline file"),
+    ] {
+        // No datasets exist under --work: the baseline is refused first.
+        let o = common::coppertag()
+            .args(["speed", "--quiet", "--work"])
+            .arg(dir.path())
+            .arg("--confirm-against")
+            .arg(&path)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{path:?}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains(says), "{path:?}: {err}");
+    }
+    let o = common::coppertag()
+        .args(["speed", "--time-ratio=-0.5", "--work"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--time-ratio must be a non-negative"));
 }
