@@ -68,7 +68,13 @@ class Detection:
         or too hidden for that fit."""
     @property
     def corrected(self) -> int:
-        """Reed-Solomon symbols corrected while decoding (0: a clean read)."""
+        """Reed-Solomon symbols corrected while decoding (0: a clean read); for a
+        tag read by likelihood, the symbols a cell-by-cell reading got wrong."""
+    @property
+    def likelihood(self) -> bool:
+        """True for a blurred tag read by matching its cells against every
+        codeword (the code could not read it); its geometry was confirmed by
+        the model fit."""
     @property
     def center(self) -> Tuple[float, float]:
         """Image point (x, y) of the tag centre (where the diagonals cross)."""

@@ -34,9 +34,22 @@ const RIDGE: f64 = 0.05;
 /// `sigma` cells: its mass over that cell (midpoint rule), normalised over
 /// the offsets `-REACH..=REACH`.
 fn axis_weights(sigma: f64) -> [f64; (2 * REACH + 1) as usize] {
-    let mut w = [0.0; (2 * REACH + 1) as usize];
+    let w = cell_weights(sigma, REACH);
+    std::array::from_fn(|k| w[k])
+}
+
+/// Weights of the offsets `-reach..=reach` (cells) along one axis for a
+/// Gaussian blur of `sigma` cells: each offset's mass over its cell
+/// (midpoint rule with [`SUBSAMPLES`] points), normalised to sum to one.
+/// `sigma` 0 is no blur.
+pub(crate) fn cell_weights(sigma: f64, reach: i64) -> Vec<f64> {
+    let mut w = vec![0.0; (2 * reach + 1) as usize];
+    if sigma <= 0.0 {
+        w[reach as usize] = 1.0;
+        return w;
+    }
     for (k, wk) in w.iter_mut().enumerate() {
-        let d = k as f64 - REACH as f64;
+        let d = k as f64 - reach as f64;
         *wk = (0..SUBSAMPLES)
             .map(|t| {
                 let x = d - 0.5 + (t as f64 + 0.5) / SUBSAMPLES as f64;
@@ -45,7 +58,39 @@ fn axis_weights(sigma: f64) -> [f64; (2 * REACH + 1) as usize] {
             .sum();
     }
     let total: f64 = w.iter().sum();
-    w.map(|v| v / total)
+    for v in &mut w {
+        *v /= total;
+    }
+    w
+}
+
+/// The forward model: whiteness of an `n` x `n` grid of cells `x`
+/// (row-major, 0 black, 1 white) as sampled through a Gaussian blur of
+/// `sigma` cells that reaches `reach` cells, with the tag's white margin
+/// and black frame around the grid ([`outside`]).
+pub(crate) fn blur_grid(x: &[f64], n: usize, sigma: f64, reach: i64) -> Vec<f64> {
+    let w = cell_weights(sigma, reach);
+    let ni = n as i64;
+    let at = |a: i64, b: i64| {
+        if (0..ni).contains(&a) && (0..ni).contains(&b) {
+            x[(a * ni + b) as usize]
+        } else {
+            outside(a, b, ni)
+        }
+    };
+    let mut out = Vec::with_capacity(n * n);
+    for i in 0..ni {
+        for j in 0..ni {
+            let mut s = 0.0;
+            for di in -reach..=reach {
+                for dj in -reach..=reach {
+                    s += w[(di + reach) as usize] * w[(dj + reach) as usize] * at(i + di, j + dj);
+                }
+            }
+            out.push(s);
+        }
+    }
+    out
 }
 
 /// Whiteness of the tag around an `n` x `n` grid at cell `(i, j)` outside
@@ -108,30 +153,7 @@ mod tests {
 
     /// Blurs a grid of cells (with its margin and frame) as the model says.
     fn blur(cells: &[f64], n: usize, sigma: f64) -> Vec<f64> {
-        let w = axis_weights(sigma);
-        let ni = n as i64;
-        let at = |a: i64, b: i64| {
-            if (0..ni).contains(&a) && (0..ni).contains(&b) {
-                cells[(a * ni + b) as usize]
-            } else {
-                outside(a, b, ni)
-            }
-        };
-        let mut out = Vec::new();
-        for i in 0..ni {
-            for j in 0..ni {
-                let mut s = 0.0;
-                for di in -REACH..=REACH {
-                    for dj in -REACH..=REACH {
-                        s += w[(di + REACH) as usize]
-                            * w[(dj + REACH) as usize]
-                            * at(i + di, j + dj);
-                    }
-                }
-                out.push(s);
-            }
-        }
-        out
+        blur_grid(cells, n, sigma, REACH)
     }
 
     #[test]

@@ -14,8 +14,9 @@ use crate::view::GrayView;
 
 use crate::family::Family;
 use crate::geometry::{B, CORNERS};
-use crate::grid_code::{decode_cells, GridReading};
+use crate::grid_code::{decode_cells, encode_cells, rotate_cell, GridReading};
 use crate::homography::Homography;
+use crate::likelihood::read_likely;
 
 /// A tag read from four corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +35,12 @@ pub struct QuadReading {
     pub rotation: usize,
     /// Contrast between the measured white and black levels (0..255).
     pub contrast: f64,
+    /// Read by likelihood: the cells were matched against every codeword
+    /// as the blur shows it, because the Reed-Solomon decoder could not
+    /// read them (a small, blurred tag; ct14 only). `corrected` then counts
+    /// the symbols a cell-by-cell reading got wrong, usually more than the
+    /// code corrects.
+    pub likelihood: bool,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -180,8 +187,41 @@ pub fn decode_quad_with(
             let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
             read_cells(family, &locally_levelled(&y, n), params.erase_fraction)
                 .filter(|r| r.corrected <= cap)
-        })?;
-    Some(reading_to_quad(reading, corners, contrast))
+        });
+    if let Some(r) = reading {
+        return Some(reading_to_quad(r, corners, contrast, false));
+    }
+    // Last of all, for a blurred tag of a family with few ids: the whole
+    // grid against every codeword.
+    if !blurred(&y) {
+        return None;
+    }
+    let r = read_likely(family.codebook()?, &y)?;
+    let misread = misread_symbols(family, &y, r.id, r.rotation)?;
+    let reading = GridReading {
+        id: r.id,
+        rotation: r.rotation,
+        corrected: misread,
+        erased: 0,
+        errors: misread,
+    };
+    Some(reading_to_quad(reading, corners, contrast, true))
+}
+
+/// Code symbols of tag `id` seen at `rotation` that the cells' whiteness
+/// `y`, thresholded at a half, gets wrong: what a hard reading of the grid
+/// would have had to correct.
+fn misread_symbols(family: &Family, y: &[f64], id: u64, rotation: usize) -> Option<usize> {
+    let black = encode_cells(family, id).ok()?;
+    let n = family.grid();
+    let bits = family.code().symbol_bits() as usize;
+    let mut wrong = vec![false; family.code().n()];
+    for (k, &cell) in family.code_cells().iter().enumerate() {
+        if (y[rotate_cell(cell, n, rotation)] < 0.5) != black[cell] {
+            wrong[k / bits] = true;
+        }
+    }
+    Some(wrong.iter().filter(|&&w| w).count())
 }
 
 /// Half-width, in cells, of the neighbourhood each cell is levelled
@@ -261,7 +301,12 @@ fn read_cells(family: &Family, x: &[f64], erase_fraction: f64) -> Option<GridRea
     })
 }
 
-fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> QuadReading {
+fn reading_to_quad(
+    r: GridReading,
+    corners: &[[f64; 2]; 4],
+    contrast: f64,
+    likelihood: bool,
+) -> QuadReading {
     // A clockwise quarter turn of the grid moves corner c to position c - 1
     // of the TL, BL, BR, TR list, so physical corner c was seen at c - d.
     let d = r.rotation;
@@ -274,6 +319,7 @@ fn reading_to_quad(r: GridReading, corners: &[[f64; 2]; 4], contrast: f64) -> Qu
         errors: r.errors,
         rotation: d,
         contrast,
+        likelihood,
     }
 }
 

@@ -9,10 +9,11 @@
 //! is a new JSON entry or a [`FamilySpec`] built in code, not new constants.
 
 use std::collections::HashMap;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use serde::{Deserialize, Serialize};
 
+use crate::likelihood::Codebook;
 use crate::rs::ReedSolomon;
 use crate::{Error, Result};
 
@@ -89,6 +90,11 @@ pub struct Family {
     /// `cell_order[k]` for the code bits only, as `usize` for indexing.
     code_cells: Vec<usize>,
     covered: Vec<bool>,
+    /// Every codeword as a blurred tag shows it, for the likelihood
+    /// reading of blurred tags; built on first use (a few tens of ms) and
+    /// shared by the family's clones. Holds `None` for a family with too
+    /// many codewords for that reading.
+    codebook: Arc<OnceLock<Option<Codebook>>>,
 }
 
 impl Family {
@@ -184,7 +190,15 @@ impl Family {
             exceptions,
             code_cells,
             covered,
+            codebook: Arc::default(),
         })
+    }
+
+    /// The family's codebook for the likelihood reading
+    /// ([`crate::likelihood`]), built on first use; `None` when the family
+    /// has too many codewords.
+    pub(crate) fn codebook(&self) -> Option<&Codebook> {
+        self.codebook.get_or_init(|| Codebook::new(self)).as_ref()
     }
 
     /// Parses every family of a `families.json` document.

@@ -20,6 +20,7 @@ pub mod family;
 pub mod geometry;
 pub mod grid_code;
 pub mod homography;
+mod likelihood;
 mod math;
 pub mod pose;
 pub mod rs;

@@ -66,10 +66,19 @@ impl Detection {
     }
 
     /// Reed-Solomon symbols corrected while decoding (0 for a clean read);
-    /// filter on it for confidence.
+    /// filter on it for confidence. For a tag read by likelihood, the
+    /// symbols a cell-by-cell reading got wrong.
     #[getter]
     fn corrected(&self) -> usize {
         self.inner.corrected
+    }
+
+    /// True when the tag was read by likelihood: a blurred tag whose cells
+    /// the Reed-Solomon decoder could not read, matched against every
+    /// codeword; reported only with its geometry confirmed by the model fit.
+    #[getter]
+    fn likelihood(&self) -> bool {
+        self.inner.likelihood
     }
 
     /// Image point (x, y) of the tag centre (where the diagonals cross).

@@ -159,6 +159,7 @@ fn read(
             estimated,
             corner_sigma: None,
             corrected: r.corrected,
+            likelihood: r.likelihood,
             center,
             contrast: r.contrast,
             homography: h,
@@ -188,7 +189,9 @@ const UNFIT_MARGIN: usize = 2;
 /// robustness set, 13 erasures read a tag through a quad with a corner
 /// 9 px off).
 fn within_limit(r: &QuadReading, limit: usize) -> bool {
-    r.corrected <= limit || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
+    r.likelihood
+        || r.corrected <= limit
+        || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
 }
 
 /// One detection per physical tag, sorted by family and id. Candidates
@@ -275,16 +278,21 @@ pub(crate) fn verify_all(
                 d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
                 out.push(d);
             }
-            Verdict::Unfit if d.corrected + UNFIT_MARGIN <= t.max_corrected => out.push(d),
+            // A likelihood reading never stands without the fit.
+            Verdict::Unfit if !d.likelihood && d.corrected + UNFIT_MARGIN <= t.max_corrected => {
+                out.push(d)
+            }
             Verdict::Unfit | Verdict::Contradicted => {}
         }
     }
     out
 }
 
-/// Whether reading `a` of a tag is better than reading `b`: fewer Reed-
-/// Solomon corrections, then more measured corners.
+/// Whether reading `a` of a tag is better than reading `b`: a reading by
+/// the code over one by likelihood, then fewer Reed-Solomon corrections,
+/// then more measured corners.
 fn better(a: &Detection, b: &Detection) -> bool {
     let real = |d: &Detection| d.estimated.iter().filter(|&&e| !e).count();
-    (std::cmp::Reverse(a.corrected), real(a)) > (std::cmp::Reverse(b.corrected), real(b))
+    let key = |d: &Detection| (!d.likelihood, std::cmp::Reverse(d.corrected), real(d));
+    key(a) > key(b)
 }

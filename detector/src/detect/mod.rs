@@ -77,8 +77,16 @@ pub struct Detection {
     /// for that fit and its corners are the side lines' intersections.
     pub corner_sigma: Option<[f64; 4]>,
     /// Reed-Solomon symbols corrected while decoding: 0 for a clean read;
-    /// filter on it for confidence.
+    /// filter on it for confidence. For a tag read by likelihood
+    /// ([`Detection::likelihood`]) it is the symbols a cell-by-cell reading
+    /// got wrong, usually more than the code corrects.
     pub corrected: usize,
+    /// Read by likelihood: a blurred ct14 tag whose cells the Reed-Solomon
+    /// decoder could not read, matched against every codeword as the blur
+    /// shows it, clearly better than any other id. Such a reading is
+    /// reported only when the fit of the tag's model to its edges confirms
+    /// its geometry (`corner_sigma` is then set).
+    pub likelihood: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).

@@ -139,6 +139,9 @@ struct JsonDetection<'a> {
     /// One-sigma corner uncertainty (px), null when the tag was not fitted.
     corner_sigma: Option<[f64; 4]>,
     corrected: usize,
+    /// Read by likelihood (a blurred tag matched against every codeword);
+    /// `corrected` then counts the symbols a cell-by-cell reading missed.
+    likelihood: bool,
     #[serde(skip_serializing_if = "Option::is_none")]
     pose: Option<TagPose>,
 }
@@ -283,6 +286,7 @@ fn one_image(
                     estimated: d.estimated,
                     corner_sigma: d.corner_sigma,
                     corrected: d.corrected,
+                    likelihood: d.likelihood,
                     pose: *p,
                 })
                 .collect(),

@@ -1,0 +1,503 @@
+//! Reading a blurred tag by likelihood: the cells against every codeword.
+//!
+//! The hard reading thresholds each cell and hands the bits to the
+//! Reed-Solomon decoder, which fails once more than its capacity of
+//! symbols is misread. On a small, defocused or motion-blurred tag (cells
+//! of 1.5 to 3 px under a blur of one to two px) most cells sample grey and
+//! a third of the symbols come out wrong, yet the grid still carries
+//! nearly all its information: each cell's sample is a known mix of its
+//! own colour and its neighbours' ([`crate::deblur`]'s blur model).
+//!
+//! A family with few ids has few codewords (ct14: 256 ids at 4 rotations),
+//! so instead of deciding cell by cell, the whole grid of samples is
+//! compared with every codeword as the blur would show it, at a few blur
+//! widths: the maximum-likelihood reading under Gaussian noise, with the
+//! tag's contrast and black level fitted per codeword by least squares.
+//! The reading stands only when the best codeword fits clearly better than
+//! the best one of any other id ([`MIN_RATIO`]); a codeword's fit is
+//! scored on the cells that fit it best ([`TRIM_KEEP`]), so a few cells
+//! hidden by an occluder or a glare spot do not sink the right one.
+//! Correlation decoding against a known codebook is textbook
+//! (maximum-likelihood decoding, e.g. Lin & Costello, "Error Control
+//! Coding", ch. 1); the blur-aware codeword templates are this crate's
+//! own.
+
+use crate::deblur::{blur_grid, cell_weights};
+use crate::family::Family;
+use crate::grid_code::{encode_cells, rotate_cell};
+
+/// Blur widths (Gaussian sigma, in cells) of the codeword templates: from
+/// a slightly soft tag to a blur of 1.3 cells, past which a 14-cell grid's
+/// alternating cells keep under 1% of their contrast. On the wild set,
+/// with the tags' true corners, the widest of an earlier set (0 to 1.0)
+/// read the most blurred tags, so the range goes a step beyond it.
+const SIGMAS: [f64; 7] = [0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35];
+
+/// Index in [`SIGMAS`] of the blur every codeword is first scored at: the
+/// middle of the range, where most blurred tags on the wild set fit best.
+const COARSE_SIGMA: usize = 3;
+
+/// Ids scored at every blur after the first round: the true id of a
+/// readable tag ranks far above the 16th at any blur of the range, while
+/// every id more costs seven dot products of a grid.
+const FINE_IDS: usize = 16;
+
+/// Cells the blur model looks at on each side (a Gaussian of 1.3 cells
+/// puts about 1% of its weight beyond 3.5 cells).
+const REACH: i64 = 3;
+
+/// Most codewords a family may have for a likelihood reading (ids times 4
+/// rotations): the reading compares every one of them, which for ct14's
+/// 1024 costs about a tenth of a millisecond; ct8's 262 144 are out of
+/// reach and keep the hard reading only.
+const MAX_CODEWORDS: usize = 4096;
+
+/// The best codeword's fit must beat the best fit of any other id by this
+/// factor (ratio of trimmed mean squared residuals). Measured with the
+/// tags' true corners and on the 35 000 quads the detector decoded on the
+/// wild set: at a ratio of 4, 1 of about 25 000 quads that were no tag
+/// read as one; at 5, none, and no tag read as a wrong id.
+const MIN_RATIO: f64 = 5.0;
+
+/// Share of the informative cells a codeword's fit is scored on, the best
+/// fitting ones: 15% of the cells may be hidden or lit by glare.
+const TRIM_KEEP: f64 = 0.85;
+
+/// Ids whose best codeword is scored with the trimmed fit: the best ones
+/// by the plain fit (an id further down cannot overtake them by dropping
+/// its worst cells when the true codeword is among them).
+const TRIMMED_IDS: usize = 8;
+
+/// Fitted contrast of the best codeword, as a fraction of the tag's
+/// measured black-to-white contrast (the cells are normalised by it).
+/// Below 0.3 the grid is nearly flat: clutter, not cells. Above 3.0 the
+/// frame and margin levels the samples were normalised by are not the
+/// tag's. On the wild set the right readings lay between 0.7 and 3.4, the
+/// quads that were no tag but fitted a codeword at 0.03 to 0.2.
+const SCALE_RANGE: (f64, f64) = (0.3, 3.0);
+
+/// Every codeword of a family, with what the fit needs of each as the blur
+/// shows it. The dot products of the samples with all codewords are not
+/// taken cell by cell: the samples are blurred instead of the codewords
+/// (the blur is symmetric, so `<y, B x> = <B y, x>`), and the informative
+/// cells are split into groups of 8 whose sums for every 8-bit black/white
+/// pattern are tabled once per blur and rotation, so that each codeword
+/// costs one table look-up per group (about 12 000 additions per blur and
+/// rotation for ct14, against 184 000 products cell by cell).
+pub(crate) struct Codebook {
+    /// Grid side (cells).
+    n: usize,
+    /// Ids, in codeword order.
+    ids: Vec<u64>,
+    /// Informative cells (not under the centre checker); the same set at
+    /// every rotation.
+    informative: Vec<usize>,
+    /// Cells under the centre checker (half black, half white disc).
+    covered: Vec<usize>,
+    /// Upright cells of each group of 8 (`usize::MAX` pads the last).
+    groups: Vec<[usize; GROUP]>,
+    /// Black cells of each id in each group, as 8-bit patterns
+    /// (`ids.len() * groups.len()`).
+    patterns: Vec<u8>,
+    /// Per blur: axis weights of the offsets `-REACH..=REACH`.
+    weights: Vec<Vec<f64>>,
+    /// Per blur: what the white margin and black frame around the grid add
+    /// to each cell's sample.
+    outside: Vec<Vec<f64>>,
+    /// Per blur, rotation and id: sum and sum of squares of the template
+    /// over the informative cells.
+    sums: Vec<(f64, f64)>,
+}
+
+/// Cells per look-up group: one byte of pattern.
+const GROUP: usize = 8;
+
+impl std::fmt::Debug for Codebook {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Codebook")
+            .field("ids", &self.ids.len())
+            .field("cells", &self.informative.len())
+            .field("blurs", &SIGMAS.len())
+            .finish()
+    }
+}
+
+impl Codebook {
+    /// The codebook of `family`, or `None` when it has too many codewords
+    /// ([`MAX_CODEWORDS`]) or a centre checker that is not the same at
+    /// every rotation.
+    pub(crate) fn new(family: &Family) -> Option<Self> {
+        let ids = family
+            .max_id()
+            .checked_sub(family.min_id())?
+            .checked_add(1)?;
+        if ids.saturating_mul(4) > MAX_CODEWORDS as u64 {
+            return None;
+        }
+        let n = family.grid();
+        let informative: Vec<usize> = (0..n * n).filter(|&c| !family.is_covered(c)).collect();
+        let covered: Vec<usize> = (0..n * n).filter(|&c| family.is_covered(c)).collect();
+        if (0..4).any(|d| {
+            covered
+                .iter()
+                .any(|&c| !family.is_covered(rotate_cell(c, n, d)))
+        }) {
+            return None;
+        }
+        let groups: Vec<[usize; GROUP]> = informative
+            .chunks(GROUP)
+            .map(|g| std::array::from_fn(|b| g.get(b).copied().unwrap_or(usize::MAX)))
+            .collect();
+        let ids: Vec<u64> = (family.min_id()..=family.max_id()).collect();
+        let mut patterns = Vec::with_capacity(ids.len() * groups.len());
+        for &id in &ids {
+            let black = encode_cells(family, id).ok()?;
+            for g in &groups {
+                let bits = g
+                    .iter()
+                    .enumerate()
+                    .filter(|&(_, &c)| c != usize::MAX && black[c])
+                    .fold(0u8, |acc, (b, _)| acc | (1 << b));
+                patterns.push(bits);
+            }
+        }
+        let weights: Vec<Vec<f64>> = SIGMAS.iter().map(|&s| cell_weights(s, REACH)).collect();
+        let zero = vec![0.0; n * n];
+        let outside: Vec<Vec<f64>> = SIGMAS
+            .iter()
+            .map(|&s| blur_grid(&zero, n, s, REACH))
+            .collect();
+        let mut book = Self {
+            n,
+            ids,
+            informative,
+            covered,
+            groups,
+            patterns,
+            weights,
+            outside,
+            sums: Vec::new(),
+        };
+        let mut sums = Vec::with_capacity(SIGMAS.len() * 4 * book.ids.len());
+        for s in 0..SIGMAS.len() {
+            for d in 0..4 {
+                for i in 0..book.ids.len() {
+                    let t = book.blur_inside(&book.seen(i, d), s);
+                    let (mut sum, mut sq) = (0.0, 0.0);
+                    for &c in &book.informative {
+                        let v = t[c] + book.outside[s][c];
+                        sum += v;
+                        sq += v * v;
+                    }
+                    sums.push((sum, sq));
+                }
+            }
+        }
+        book.sums = sums;
+        Some(book)
+    }
+
+    /// The seen grid of codeword `i` at `d` quarter turns (0 black, 1
+    /// white, 0.5 under the centre checker).
+    fn seen(&self, i: usize, d: usize) -> Vec<f64> {
+        let n = self.n;
+        let mut seen = vec![0.5; n * n];
+        let ng = self.groups.len();
+        for (g, cells) in self.groups.iter().enumerate() {
+            let p = self.patterns[i * ng + g];
+            for (b, &c) in cells.iter().enumerate() {
+                if c != usize::MAX {
+                    seen[rotate_cell(c, n, d)] = if p >> b & 1 == 1 { 0.0 } else { 1.0 };
+                }
+            }
+        }
+        seen
+    }
+
+    /// `y` blurred by blur `k` within the grid (nothing outside it).
+    fn blur_inside(&self, y: &[f64], k: usize) -> Vec<f64> {
+        let (n, w, r) = (self.n, &self.weights[k], REACH);
+        let along = |src: &[f64], horizontal: bool| -> Vec<f64> {
+            let mut out = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    let mut s = 0.0;
+                    for (o, wo) in w.iter().enumerate() {
+                        let q = j as i64 + o as i64 - r;
+                        if (0..n as i64).contains(&q) {
+                            let q = q as usize;
+                            s += wo
+                                * if horizontal {
+                                    src[i * n + q]
+                                } else {
+                                    src[q * n + j]
+                                };
+                        }
+                    }
+                    out[i * n + j] = s;
+                }
+            }
+            out
+        };
+        let rows = along(y, true);
+        // Columns: the same with the roles of i and j swapped.
+        let mut out = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let mut s = 0.0;
+                for (o, wo) in w.iter().enumerate() {
+                    let q = i as i64 + o as i64 - r;
+                    if (0..n as i64).contains(&q) {
+                        s += wo * rows[q as usize * n + j];
+                    }
+                }
+                out[i * n + j] = s;
+            }
+        }
+        out
+    }
+}
+
+/// A grid read by likelihood.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct LikelyReading {
+    /// Decoded id.
+    pub id: u64,
+    /// Quarter turns, as in [`crate::grid_code::GridReading::rotation`].
+    pub rotation: usize,
+}
+
+/// The least-squares fit `y = a t + c` over `k` cells from the dot product
+/// of `t` and `y` and their sums and sums of squares: `(a, c, score)` with
+/// the score the mean squared residual divided by `a^2` (the noise relative
+/// to the contrast the codeword explains); `None` for a flat or inverted
+/// fit.
+fn plain_fit(dot: f64, t_sums: (f64, f64), y_sums: (f64, f64), k: f64) -> Option<(f64, f64, f64)> {
+    let (st, stt) = t_sums;
+    let (sy, syy) = y_sums;
+    let var = stt - st * st / k;
+    let cov = dot - st * sy / k;
+    if var <= 1e-9 || cov <= 0.0 {
+        return None;
+    }
+    let a = cov / var;
+    let c = (sy - a * st) / k;
+    let resid = (syy - sy * sy / k - cov * cov / var).max(0.0) / k;
+    Some((a, c, resid / (a * a)))
+}
+
+/// Trimmed score of the template `t` (informative cells) against `y`:
+/// fitted by least squares, then the mean of the smallest [`TRIM_KEEP`]
+/// share of squared residuals divided by `a^2`, and `a`.
+fn trimmed(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
+    let k = t.len() as f64;
+    let dot = t.iter().zip(y).map(|(a, b)| a * b).sum();
+    let ts = (t.iter().sum(), t.iter().map(|v| v * v).sum());
+    let ys = (y.iter().sum(), y.iter().map(|v| v * v).sum());
+    let (a, c, _) = plain_fit(dot, ts, ys, k)?;
+    let mut r: Vec<f64> = t
+        .iter()
+        .zip(y)
+        .map(|(tv, yv)| (yv - a * tv - c).powi(2))
+        .collect();
+    let keep = ((r.len() as f64 * TRIM_KEEP) as usize).max(1);
+    r.select_nth_unstable_by(keep - 1, f64::total_cmp);
+    Some((r[..keep].iter().sum::<f64>() / keep as f64 / (a * a), a))
+}
+
+/// Reads the cells' whiteness `y` (the seen `n` x `n` grid, row-major, 0
+/// at the frame's black, 1 at the margin's white) against every codeword
+/// of `book`; `None` unless one id fits clearly best ([`MIN_RATIO`]) with a
+/// plausible contrast ([`SCALE_RANGE`]).
+///
+/// Three rounds, each on fewer codewords with a finer score: every
+/// codeword at one middle blur ([`COARSE_SIGMA`]) by table look-ups; the
+/// [`FINE_IDS`] best ids at their best rotation at every blur by dot
+/// products with the blurred samples; the [`TRIMMED_IDS`] best of those on
+/// their best-fitting cells.
+pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyReading> {
+    let n = book.n;
+    if y.len() != n * n {
+        return None;
+    }
+    let k = book.informative.len() as f64;
+    let ys: Vec<f64> = book.informative.iter().map(|&c| y[c]).collect();
+    let y_sums = (ys.iter().sum(), ys.iter().map(|v| v * v).sum());
+    let mut masked = vec![0.0; n * n];
+    for &c in &book.informative {
+        masked[c] = y[c];
+    }
+    let nids = book.ids.len();
+    // `<y, t>` over the informative cells for the template of the seen grid
+    // `x` at blur `s`, from the blurred samples `z`: the blur is symmetric,
+    // so `<y, B x + outside> = <B y, x> + <y, outside>`.
+    let blurred: Vec<(Vec<f64>, f64)> = (0..SIGMAS.len())
+        .map(|s| {
+            let z = book.blur_inside(&masked, s);
+            let outside = book
+                .informative
+                .iter()
+                .map(|&c| y[c] * book.outside[s][c])
+                .sum();
+            (z, outside)
+        })
+        .collect();
+
+    // Round 1: every codeword at the middle blur.
+    let (z, outside) = &blurred[COARSE_SIGMA];
+    let z_inf: f64 = book.informative.iter().map(|&c| z[c]).sum();
+    let z_cov: f64 = 0.5 * book.covered.iter().map(|&c| z[c]).sum::<f64>();
+    let ng = book.groups.len();
+    let mut table = vec![0.0f64; ng * 256];
+    // Best plain fit of each id: (score, rotation).
+    let mut coarse = vec![(f64::INFINITY, 0usize); nids];
+    for d in 0..4 {
+        // Sum of z over the black cells of every pattern of each group.
+        for (g, cells) in book.groups.iter().enumerate() {
+            let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
+                usize::MAX => 0.0,
+                c => z[rotate_cell(c, n, d)],
+            });
+            let t = &mut table[g * 256..(g + 1) * 256];
+            t[0] = 0.0;
+            for v in 1..256usize {
+                t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
+            }
+        }
+        for (i, pat) in book.patterns.chunks_exact(ng).enumerate() {
+            let black: f64 = pat
+                .iter()
+                .enumerate()
+                .map(|(g, &p)| table[g * 256 + usize::from(p)])
+                .sum();
+            let dot = z_inf - black + z_cov + outside;
+            let sums = book.sums[(COARSE_SIGMA * 4 + d) * nids + i];
+            if let Some((_, _, score)) = plain_fit(dot, sums, y_sums, k) {
+                if score < coarse[i].0 {
+                    coarse[i] = (score, d);
+                }
+            }
+        }
+    }
+    let mut order: Vec<usize> = (0..nids).filter(|&i| coarse[i].0.is_finite()).collect();
+    order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
+    order.truncate(FINE_IDS);
+
+    // Round 2: those ids at every blur: (score, id index, blur).
+    let mut fine: Vec<(f64, usize, usize)> = order
+        .iter()
+        .filter_map(|&i| {
+            let d = coarse[i].1;
+            let x = book.seen(i, d);
+            (0..SIGMAS.len())
+                .filter_map(|s| {
+                    let (z, outside) = &blurred[s];
+                    let dot = x.iter().zip(z).map(|(a, b)| a * b).sum::<f64>() + outside;
+                    let sums = book.sums[(s * 4 + d) * nids + i];
+                    plain_fit(dot, sums, y_sums, k).map(|(_, _, score)| (score, i, s))
+                })
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+        })
+        .collect();
+    fine.sort_by(|a, b| a.0.total_cmp(&b.0));
+    fine.truncate(TRIMMED_IDS);
+
+    // Round 3: the best of those on their best-fitting cells.
+    let mut scored: Vec<(f64, usize, f64)> = fine
+        .iter()
+        .filter_map(|&(_, i, s)| {
+            let t = book.blur_inside(&book.seen(i, coarse[i].1), s);
+            let ti: Vec<f64> = book
+                .informative
+                .iter()
+                .map(|&c| t[c] + book.outside[s][c])
+                .collect();
+            let (score, a) = trimmed(&ti, &ys)?;
+            Some((score, i, a))
+        })
+        .collect();
+    scored.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let &(r1, i, a) = scored.first()?;
+    let r2 = scored.get(1).map_or(f64::INFINITY, |s| s.0);
+    let clear = r2 > MIN_RATIO * r1.max(1e-12);
+    let plausible = (SCALE_RANGE.0..=SCALE_RANGE.1).contains(&a);
+    (clear && plausible).then_some(LikelyReading {
+        id: book.ids[i],
+        rotation: coarse[i].1,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The seen whiteness of tag `id` at rotation `d`, blurred by `sigma`
+    /// cells, with a contrast `a`, black level `c` and a deterministic
+    /// noise of amplitude `noise`.
+    fn seen(
+        family: &Family,
+        id: u64,
+        d: usize,
+        sigma: f64,
+        a: f64,
+        c: f64,
+        noise: f64,
+    ) -> Vec<f64> {
+        let n = family.grid();
+        let black = encode_cells(family, id).unwrap();
+        let mut g = vec![0.5; n * n];
+        for (cell, &b) in black.iter().enumerate() {
+            if !family.is_covered(cell) {
+                g[rotate_cell(cell, n, d)] = if b { 0.0 } else { 1.0 };
+            }
+        }
+        blur_grid(&g, n, sigma, REACH)
+            .iter()
+            .enumerate()
+            .map(|(i, v)| {
+                let h = ((i as f64 + 1.0) * 12.9898).sin() * 43_758.545;
+                c + a * v + noise * (h - h.floor() - 0.5)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_tag_too_blurred_for_the_hard_reading_is_read_by_likelihood() {
+        let fam = Family::ct14();
+        let book = Codebook::new(fam).unwrap();
+        for (id, d) in [(7, 0), (131, 1), (255, 3)] {
+            let y = seen(fam, id, d, 1.0, 0.4, 0.3, 0.05);
+            let bits: Vec<bool> = y.iter().map(|&v| v < 0.5).collect();
+            assert!(
+                crate::grid_code::decode_cells(fam, &bits, &[]).is_none(),
+                "the blur must defeat the hard reading for this test to mean anything"
+            );
+            let r = read_likely(&book, &y).expect("read by likelihood");
+            assert_eq!((r.id, r.rotation), (id, d));
+        }
+    }
+
+    #[test]
+    fn flat_and_random_grids_are_not_read() {
+        let fam = Family::ct14();
+        let book = Codebook::new(fam).unwrap();
+        assert_eq!(read_likely(&book, &vec![0.5; 196]), None);
+        // Smooth random blobs: a clutter quad's grey interior.
+        for seed in 0..50u64 {
+            let y: Vec<f64> = (0..196)
+                .map(|i| {
+                    let (r, c) = ((i / 14) as f64, (i % 14) as f64);
+                    let s = seed as f64;
+                    0.5 + 0.4 * ((r * 0.7 + s).sin() * (c * 0.5 + 2.0 * s).cos())
+                })
+                .collect();
+            assert_eq!(read_likely(&book, &y), None, "seed {seed}");
+        }
+    }
+
+    #[test]
+    fn a_family_with_too_many_codewords_has_no_book() {
+        assert!(Codebook::new(Family::ct8()).is_none());
+        assert!(Codebook::new(Family::ct14()).is_some());
+    }
+}
