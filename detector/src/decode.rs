@@ -56,39 +56,60 @@ fn median(v: &mut [f64]) -> Option<f64> {
 /// 3 x 3 samples span the central half of the cell.
 const SAMPLE_SPREAD: f64 = 0.25;
 
-/// Samples taken from a quad: one darkness-agnostic grey value per cell plus
-/// the tag's own black and white levels.
-struct GridSamples {
-    cells: Vec<f64>,
-    black: f64,
-    white: f64,
+/// The image point at tag coordinates `(u, v)` through `h`, sampled.
+fn sample_at(img: &GrayView<'_>, h: &Homography, u: f64, v: f64) -> Option<f64> {
+    let p = h.map([u, v])?;
+    sample_bilinear(img, p[0], p[1])
 }
 
-fn sample_grid(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<GridSamples> {
+/// Tag coordinate of the centre of cell `j` (row or column) of an `n` x `n`
+/// grid whose cells are `step` wide.
+fn cell_centre(j: usize, step: f64) -> f64 {
+    -0.5 + (1.5 + j as f64) * step
+}
+
+/// Whether the four outermost samples of the grid [`sample_cells`] takes
+/// (the same points, computed the same way) fall inside the image: a quad
+/// whose grid leaves the image is refused before its cells are sampled.
+fn grid_corners_inside(img: &GrayView<'_>, n: usize, h: &Homography) -> bool {
     let step = 1.0 / (n as f64 + 2.0);
-    let at = |u: f64, v: f64| -> Option<f64> {
-        let p = h.map([u, v])?;
-        sample_bilinear(img, p[0], p[1])
-    };
-    // Each cell averages a 3 x 3 pattern over its central half: blur and
-    // noise average out while neighbouring cells stay out.
+    let lo = cell_centre(0, step) - SAMPLE_SPREAD * step;
+    let hi = cell_centre(n - 1, step) + SAMPLE_SPREAD * step;
+    [(lo, lo), (lo, hi), (hi, hi), (hi, lo)]
+        .iter()
+        .all(|&(u, v)| sample_at(img, h, u, v).is_some())
+}
+
+/// One darkness-agnostic grey value per cell (row-major): each cell
+/// averages a 3 x 3 pattern over its central half, so blur and noise
+/// average out while neighbouring cells stay out. `None` when a sample
+/// falls outside the image.
+fn sample_cells(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<Vec<f64>> {
+    let step = 1.0 / (n as f64 + 2.0);
     let offs = [-SAMPLE_SPREAD * step, 0.0, SAMPLE_SPREAD * step];
     let mut cells = Vec::with_capacity(n * n);
     for i in 0..n {
         for j in 0..n {
-            let cu = -0.5 + (1.5 + j as f64) * step;
-            let cv = -0.5 + (1.5 + i as f64) * step;
+            let (cu, cv) = (cell_centre(j, step), cell_centre(i, step));
             let mut sum = 0.0;
             for dv in offs {
                 for du in offs {
-                    sum += at(cu + du, cv + dv)?;
+                    sum += sample_at(img, h, cu + du, cv + dv)?;
                 }
             }
             cells.push(sum / 9.0);
         }
     }
-    // White margin: centre line of the one-cell margin; black frame: centre
-    // line of the frame, b/2 outside the data square.
+    Some(cells)
+}
+
+/// The tag's own white and black levels seen through the homography `h`
+/// of a family with `n` x `n` cells: the medians of the centre line of the
+/// one-cell white margin and of the black frame's centre line, b/2
+/// outside the data square (samples outside the image are skipped).
+pub(crate) fn ring_levels(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<(f64, f64)> {
+    let at = |u: f64, v: f64| sample_at(img, h, u, v);
+    let step = 1.0 / (n as f64 + 2.0);
     let mut white = Vec::with_capacity(4 * (n + 2));
     let mut black = Vec::with_capacity(4 * (n + 2));
     let m = 0.5 - 0.5 * step;
@@ -106,11 +127,7 @@ fn sample_grid(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<GridSampl
             }
         }
     }
-    Some(GridSamples {
-        cells,
-        black: median(&mut black)?,
-        white: median(&mut white)?,
-    })
+    Some((median(&mut white)?, median(&mut black)?))
 }
 
 /// Thresholds of the decoder, in grey levels of the 8-bit image.
@@ -159,13 +176,19 @@ pub fn decode_quad_with(
 ) -> Option<QuadReading> {
     let h = Homography::from_points(&CORNERS, corners)?;
     let n = family.grid();
-    let s = sample_grid(img, n, &h)?;
-    let contrast = s.white - s.black;
+    // The cheap refusals first (a grid leaving the image, no contrast
+    // between margin and frame), then the cells.
+    if !grid_corners_inside(img, n, &h) {
+        return None;
+    }
+    let (white, black) = ring_levels(img, n, &h)?;
+    let contrast = white - black;
     if contrast < params.min_contrast {
         return None;
     }
+    let cells = sample_cells(img, n, &h)?;
     // Cells as whiteness: 0 at the frame's black, 1 at the margin's white.
-    let y: Vec<f64> = s.cells.iter().map(|v| (v - s.black) / contrast).collect();
+    let y: Vec<f64> = cells.iter().map(|v| (v - black) / contrast).collect();
     let reading = read_cells(family, &y, params.erase_fraction)
         .or_else(|| {
             // Third chance, for a blurred tag only: undo the blur in cell

@@ -10,7 +10,8 @@
 //! geometry explains the visible cells best.
 
 use super::quads::Candidate;
-use super::refine::{refine_candidate, RefineParams, RefineScratch};
+use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS};
+use super::reject::plainly_not_a_tag;
 use super::verify::{verify, Verdict};
 use super::Detection;
 use crate::decode::{decode_quad_with, DecodeParams, QuadReading};
@@ -63,8 +64,9 @@ impl Found {
 
 /// Refines and decodes `candidates` (best first, working-image coordinates
 /// scaled by `scale`) on the full-resolution `img`. Candidates whose centre
-/// falls inside a tag already read cleanly are skipped. Returns the tags
-/// found and the number of candidates decoded.
+/// falls inside a tag already read cleanly are skipped, and so are those
+/// [`plainly_not_a_tag`] refuses. Returns the tags found and the number of
+/// candidates decoded.
 pub(crate) fn decode_candidates(
     img: &GrayView<'_>,
     candidates: &[Candidate],
@@ -99,6 +101,13 @@ pub(crate) fn decode_candidates(
                 continue;
             }
         }
+        if plainly_not_a_tag(img, cand, scale, finest_grid(&p.refine)) {
+            // A refused rival counts as one that did not read.
+            if let Some(r) = rival {
+                found[r].rivals += 1;
+            }
+            continue;
+        }
         attempts += 1;
         let q = refine_candidate(img, cand, scale, &p.refine, scratch);
         let best = read(img, cand, &q, centre, targets, &p.decode);
@@ -118,6 +127,11 @@ pub(crate) fn decode_candidates(
         }
     }
     (found, attempts)
+}
+
+/// Cells across the data grid of the finest family detected.
+fn finest_grid(p: &RefineParams) -> usize {
+    (p.cells_per_side as usize).saturating_sub(MARGIN_CELLS)
 }
 
 /// The best reading of the refined quad `q` over the target families: the

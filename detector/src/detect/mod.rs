@@ -42,6 +42,7 @@ pub(crate) mod ellipses;
 pub(crate) mod lines;
 pub(crate) mod quads;
 pub(crate) mod refine;
+pub(crate) mod reject;
 pub(crate) mod small;
 pub(crate) mod threshold;
 pub(crate) mod verify;
