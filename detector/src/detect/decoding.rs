@@ -83,9 +83,10 @@ pub(crate) fn decode_candidates(
     })
 }
 
-/// Candidates decoded at once per worker thread by
-/// [`decode_candidates_par`]: enough that a thread rarely waits for the
-/// others at the end of a batch, few enough that little is decoded in
+/// Most candidates decoded at once per worker thread by
+/// [`decode_candidates_par`] (batches start at one per thread and double
+/// while no reading is in vain): enough that a thread rarely waits for
+/// the others at the end of a batch, few enough that little is decoded in
 /// vain when a tag found early in a batch makes the later candidates over
 /// it skipped.
 const BATCH_PER_THREAD: usize = 4;
@@ -109,15 +110,30 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
     workers: &Workers<W>,
     scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
 ) -> (Vec<Found>, usize) {
-    let batch_len = BATCH_PER_THREAD * workers.threads();
+    let (least, most) = (workers.threads(), BATCH_PER_THREAD * workers.threads());
+    let mut batch_len = least;
+    // The first batch is one candidate per thread.
+    let mut wasted = true;
     let mut ready: VecDeque<(usize, Option<Detection>)> = VecDeque::new();
     let mut done = 0;
     decode_in_order(candidates, scale, p, |j, _, found| {
         done += 1;
         while ready.front().is_some_and(|&(k, _)| k < j) {
             ready.pop_front();
+            wasted = true;
         }
         if ready.front().is_none_or(|&(k, _)| k != j) {
+            // Batches grow while every reading is used and fall back to
+            // one candidate per thread after a reading in vain: a tag
+            // found makes the candidates over it skipped, and those come
+            // in runs.
+            wasted |= !ready.is_empty();
+            batch_len = if wasted {
+                least
+            } else {
+                (2 * batch_len).min(most)
+            };
+            wasted = false;
             let left = p.max_attempts.saturating_sub(done - 1).min(batch_len);
             let picks: Vec<usize> = std::iter::once(j)
                 .chain((j + 1..candidates.len()).filter(|&k| {

@@ -505,6 +505,28 @@ impl Detector {
     /// are sorted by family and id; each physical tag is reported once.
     pub fn detect<'a>(&mut self, img: impl Into<GrayView<'a>>) -> Vec<Detection> {
         let img = img.into();
+        // The whole frame runs on one of the pool's threads: the parallel
+        // steps inside then hand work to the other threads by rayon's work
+        // stealing, where each step entered from outside the pool would
+        // wait for a pool thread to wake up and for the caller to be woken
+        // again (tens of microseconds each, and a frame has dozens of
+        // steps). Taken out of `self` for the call; a panic in a stage
+        // leaves the detector without its pool (one thread), not broken.
+        let workers = self.workers.take();
+        let out = match &workers {
+            None => self.detect_on(img, None),
+            Some(w) => w.install(|| self.detect_on(img, Some(w))),
+        };
+        self.workers = workers;
+        out
+    }
+
+    /// [`Detector::detect`] with the pool `workers`, if any.
+    fn detect_on(
+        &mut self,
+        img: GrayView<'_>,
+        workers: Option<&Workers<Workspace>>,
+    ) -> Vec<Detection> {
         let t0 = Instant::now();
         let mut laps = Laps(t0);
         let (p, ws) = (&self.params, &mut self.ws);
@@ -513,7 +535,6 @@ impl Detector {
             height: img.height(),
             ..DetectionStats::default()
         };
-        let workers = self.workers.as_ref();
         let scale = ws.seg.run(&img, p, workers, &mut st.times);
         let seg = &ws.seg;
         (
