@@ -1,19 +1,25 @@
-//! Detection speed on realistic frames, single-threaded: frames like the
-//! wild benchmark's (a lit, cluttered background of discs, squares, rings
-//! and strokes; one to ten tags of both families at random poses and
+//! Detection speed on realistic frames, on one thread and on two: frames
+//! like the wild benchmark's (a lit, cluttered background of discs,
+//! squares, rings and strokes; one to ten tags of both families at random poses and
 //! sizes, some partly hidden; blur and sensor noise), one set at 1080p and
 //! one at 4K, rendered from a fixed seed with the test renderer
 //! (`tests/common`). The clean one-tag frames of `benches/detect.rs` are a
 //! third set, for the per-stage split of the common path.
 //!
-//! For each set it prints the median, 95th percentile and maximum time per
-//! frame (each frame's time is its median over [`ROUNDS`] runs, so one
-//! preempted run does not count) and the median over frames of every
-//! stage's time (from [`coppertag::Detector::stats`]); criterion then times
-//! the whole set. Frames are rendered once, before any timing.
+//! For each set it prints, for a one-thread detector and one of
+//! [`THREADS`] threads ([`coppertag::DetectorConfig::threads`]) timed in
+//! the same run, frame by frame in turn, the median, 95th percentile and
+//! maximum time per frame (each frame's time is its median over [`ROUNDS`]
+//! runs, so one preempted run does not count), the median over frames of
+//! every stage's time (from [`coppertag::Detector::stats`]) and the ratios
+//! of the one-thread times to the others (it stops if the two detect
+//! anything differently); criterion then times the whole set on one
+//! thread. Frames are rendered once, before any timing.
 //!
 //! `cargo bench -p coppertag --bench wild`; set `COPPERTAG_BENCH_ROUNDS`
 //! to change the number of runs per frame of the printed summary,
+//! `COPPERTAG_BENCH_THREADS` to time another thread count against one
+//! (1: the one-thread detector alone),
 //! `COPPERTAG_BENCH_SETS` (say `clean_1080p,wild_4k`) to render and time
 //! only some sets, `COPPERTAG_BENCH_FRAMES` to a directory to keep the
 //! rendered frames there (PNG) and read them back on later runs (under
@@ -31,7 +37,7 @@ use image::GrayImage;
 #[path = "../tests/common/mod.rs"]
 mod common;
 
-use common::{in_poly, Camera, Occluder, Rng, Scene, SCENARIOS};
+use common::wild::{camera, wild_frame};
 
 /// Seed of every rendered set: the frames are the same on every run.
 const SEED: u64 = 0xC0FFEE;
@@ -42,196 +48,16 @@ const FRAMES_4K: usize = 4;
 /// Runs per frame of the printed summary (its median is the frame's time),
 /// unless `COPPERTAG_BENCH_ROUNDS` says otherwise.
 const ROUNDS: usize = 5;
-/// Most tags in a frame (at least one).
-const MAX_TAGS: u64 = 10;
-/// Shortest and longest data-square side of a tag, in pixels per 1080
-/// lines of image height (the wild set's range, from barely decodable to
-/// a quarter of the frame).
-const TAG_SIDE_PX: (f64, f64) = (22.0, 260.0);
-/// Background shapes per frame: at least `CLUTTER.0`, plus up to
-/// `CLUTTER.1` more.
-const CLUTTER: (u64, u64) = (30, 60);
-/// Chance that a tag is partly hidden by one of the paper's occluders,
-/// and the fraction of its data square hidden then.
-const OCCLUDED: f64 = 0.3;
-const OCCLUDED_FRAC: (f64, f64) = (0.05, 0.2);
-/// Gaussian blur sigma (px at 1080p) and noise sigma (grey levels) ranges.
-const BLUR: (f64, f64) = (0.4, 1.4);
-const NOISE: (f64, f64) = (1.0, 4.0);
-/// Tries to place a tag clear of the tags already placed.
-const PLACE_TRIES: usize = 20;
+/// Threads of the detector timed against the one-thread detector, unless
+/// `COPPERTAG_BENCH_THREADS` says otherwise (1 times the one-thread
+/// detector alone).
+const THREADS: usize = 2;
 
 /// A set of frames and the number of tags placed in them.
 struct FrameSet {
     name: &'static str,
     frames: Vec<GrayImage>,
     tags: usize,
-}
-
-/// The paper's camera scaled to `height` lines (same field of view).
-fn camera(height: u32) -> Camera {
-    let k = f64::from(height) / f64::from(common::CAMERA.height);
-    Camera {
-        width: (f64::from(common::CAMERA.width) * k).round() as u32,
-        height,
-        f: common::CAMERA.f * k,
-    }
-}
-
-/// Fills polygon `poly` (pixels) with grey `v`, pixel centres inside.
-fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
-    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
-    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0.0f64, 0.0f64);
-    for p in poly {
-        x0 = x0.min(p[0]);
-        y0 = y0.min(p[1]);
-        x1 = x1.max(p[0]);
-        y1 = y1.max(p[1]);
-    }
-    let (xa, ya) = (x0.max(0.0) as u32, y0.max(0.0) as u32);
-    let (xb, yb) = (x1.min(w - 1.0) as u32, y1.min(h - 1.0) as u32);
-    for y in ya..=yb {
-        for x in xa..=xb {
-            if in_poly(poly, [f64::from(x), f64::from(y)]) {
-                img.put_pixel(x, y, image::Luma([v]));
-            }
-        }
-    }
-}
-
-/// A regular `n`-gon of radius `r` around `c`, squashed by `skew` along
-/// its turned y axis.
-fn polygon(c: [f64; 2], r: f64, n: usize, turn: f64, skew: f64) -> Vec<[f64; 2]> {
-    (0..n)
-        .map(|k| {
-            let t = k as f64 / n as f64 * std::f64::consts::TAU + std::f64::consts::FRAC_PI_4;
-            let (x, y) = (r * t.cos(), r * t.sin() * skew);
-            [
-                c[0] + x * turn.cos() - y * turn.sin(),
-                c[1] + x * turn.sin() + y * turn.cos(),
-            ]
-        })
-        .collect()
-}
-
-/// A lit background (a linear gradient) with clutter: discs, squares,
-/// rings (a disc with a lighter disc inside) and thin strokes.
-fn background(rng: &mut Rng, w: u32, h: u32) -> GrayImage {
-    let base = rng.range(70.0, 180.0);
-    let (gx, gy) = (rng.range(-60.0, 60.0), rng.range(-60.0, 60.0));
-    let mut img = GrayImage::from_fn(w, h, |x, y| {
-        let v = base + gx * f64::from(x) / f64::from(w) + gy * f64::from(y) / f64::from(h);
-        image::Luma([v.clamp(0.0, 255.0) as u8])
-    });
-    let scale = f64::from(h) / 1080.0;
-    let n = CLUTTER.0 + rng.next_u64() % (CLUTTER.1 + 1);
-    for _ in 0..n {
-        let c = [rng.range(0.0, f64::from(w)), rng.range(0.0, f64::from(h))];
-        let r = rng.range(6.0, 160.0) * scale;
-        let dark = rng.range(0.0, 90.0) as u8;
-        let light = rng.range(160.0, 255.0) as u8;
-        let grey = if rng.uniform() < 0.5 { dark } else { light };
-        let (turn, skew) = (rng.range(0.0, 6.3), rng.range(0.3, 1.0));
-        match rng.next_u64() % 4 {
-            0 => fill(&mut img, &polygon(c, r, 48, turn, skew), grey),
-            1 => fill(&mut img, &polygon(c, r, 4, turn, skew), grey),
-            2 => {
-                fill(&mut img, &polygon(c, r, 48, turn, skew), dark);
-                fill(&mut img, &polygon(c, 0.6 * r, 48, turn, skew), light);
-            }
-            _ => {
-                let t = rng.range(1.5, 6.0) * scale;
-                fill(&mut img, &polygon(c, r, 4, turn, t / r), grey);
-            }
-        }
-    }
-    img
-}
-
-/// A random pose of a tag in `cam`'s view, or `None` when its bounding box
-/// would meet one in `taken` (pixels, grown by a margin).
-fn place(rng: &mut Rng, cam: &Camera, taken: &[[f64; 4]]) -> Option<(Scene, [f64; 4])> {
-    let k = f64::from(cam.height) / 1080.0;
-    // log-uniform size: as many small tags as large ones.
-    let side = (rng.range(TAG_SIDE_PX.0.ln(), TAG_SIDE_PX.1.ln())).exp() * k;
-    let d = cam.f * common::TAG_SIDE_M / side;
-    let (u, v) = (
-        rng.range(0.1, 0.9) * f64::from(cam.width),
-        rng.range(0.1, 0.9) * f64::from(cam.height),
-    );
-    let t = [(u - cam.cx()) * d / cam.f, (v - cam.cy()) * d / cam.f, d];
-    let r = common::rotation(
-        rng.range(-0.7, 0.7),
-        rng.range(-0.7, 0.7),
-        rng.range(-3.1, 3.1),
-    );
-    let family = if rng.uniform() < 0.5 {
-        Family::ct14()
-    } else {
-        Family::ct8()
-    };
-    let span = family.max_id() - family.min_id() + 1;
-    let id = family.min_id() + rng.next_u64() % span;
-    let h = cam.homography(&r, t, common::TAG_SIDE_M);
-    let mut s = Scene::new(family, id, cam.width, cam.height, h);
-    let outline = [[-1.0, -1.0], [-1.0, 1.0], [1.0, 1.0], [1.0, -1.0]];
-    let mut bb = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
-    for p in outline {
-        let q = s.h.map(p)?;
-        bb = [
-            bb[0].min(q[0]),
-            bb[1].min(q[1]),
-            bb[2].max(q[0]),
-            bb[3].max(q[1]),
-        ];
-    }
-    let margin = 0.2 * side;
-    let clear = |o: &[f64; 4]| {
-        bb[2] + margin < o[0]
-            || o[2] + margin < bb[0]
-            || bb[3] + margin < o[1]
-            || o[3] + margin < bb[1]
-    };
-    if !taken.iter().all(clear) {
-        return None;
-    }
-    s.white = rng.range(170.0, 250.0) as u8;
-    s.black = rng.range(5.0, 70.0) as u8;
-    if rng.uniform() < OCCLUDED {
-        let kind = SCENARIOS[(rng.next_u64() % SCENARIOS.len() as u64) as usize];
-        let frac = rng.range(OCCLUDED_FRAC.0, OCCLUDED_FRAC.1);
-        let turn = (rng.next_u64() % 4) as u32;
-        let grey = rng.range(0.0, 255.0) as u8;
-        s.occluders = common::occluders(kind, frac, turn, rng.uniform())
-            .into_iter()
-            .map(|poly| Occluder { poly, grey })
-            .collect();
-    }
-    Some((s, bb))
-}
-
-/// One wild-like frame from `cam` and its number of tags.
-fn wild_frame(seed: u64, cam: &Camera) -> (GrayImage, usize) {
-    let mut rng = Rng::new(seed);
-    let mut img = background(&mut rng, cam.width, cam.height);
-    let want = 1 + rng.next_u64() % MAX_TAGS;
-    let mut taken = Vec::new();
-    for _ in 0..want {
-        let placed = (0..PLACE_TRIES).find_map(|_| place(&mut rng, cam, &taken));
-        if let Some((scene, bb)) = placed {
-            scene.paint(&mut img);
-            taken.push(bb);
-        }
-    }
-    let k = f64::from(cam.height) / 1080.0;
-    let blur = rng.range(BLUR.0, BLUR.1) * k;
-    let mut img = imageproc::filter::gaussian_blur_f32(&img, blur as f32);
-    let noise = rng.range(NOISE.0, NOISE.1);
-    for p in img.pixels_mut() {
-        let v = f64::from(p.0[0]) + rng.gauss() * noise;
-        p.0[0] = v.round().clamp(0.0, 255.0) as u8;
-    }
-    (img, taken.len())
 }
 
 fn wild_set(name: &'static str, height: u32, n: usize, seed: u64) -> FrameSet {
@@ -312,27 +138,17 @@ fn ms(d: Duration) -> String {
     format!("{:.2} ms", d.as_secs_f64() * 1e3)
 }
 
-/// Runs every frame `rounds` times (round-robin over the set) and prints
-/// the per-frame quantiles and the median per-stage split.
-fn summary(det: &mut Detector, set: &FrameSet, rounds: usize) {
-    let mut times: Vec<Vec<StageTimes>> = vec![Vec::new(); set.frames.len()];
-    let mut found = 0;
-    let mut digest = std::collections::hash_map::DefaultHasher::new();
-    for round in 0..rounds {
-        for (frame, t) in set.frames.iter().zip(&mut times) {
-            let found_here = det.detect(frame);
-            if round == 0 {
-                found += found_here.len();
-                // Every field, floats in their shortest exact form: any
-                // change of the detector's output shows as a new digest
-                // (the same on every run of one toolchain).
-                format!("{found_here:?}").hash(&mut digest);
-            }
-            t.push(det.stats().times);
-        }
-    }
-    let stage = |name: &str| -> Vec<Duration> {
-        times
+/// One detector's times over a set: per frame, every run's stage times.
+struct Timed {
+    times: Vec<Vec<StageTimes>>,
+    found: usize,
+    digest: u64,
+}
+
+impl Timed {
+    /// Per frame, the median over its runs of stage `name`'s time.
+    fn stage(&self, name: &str) -> Vec<Duration> {
+        self.times
             .iter()
             .map(|runs| {
                 let v: Vec<Duration> = runs
@@ -346,28 +162,96 @@ fn summary(det: &mut Detector, set: &FrameSet, rounds: usize) {
                 quantile(&v, 0.5)
             })
             .collect()
-    };
-    let total = stage("total");
-    println!(
-        "{}: {} frames {}x{}, {} tags placed, {} found (digest {:016x}); per frame over {} runs: median {}, p95 {}, max {}",
-        set.name,
-        set.frames.len(),
-        set.frames[0].width(),
-        set.frames[0].height(),
-        set.tags,
-        found,
-        digest.finish(),
-        rounds,
-        ms(quantile(&total, 0.5)),
-        ms(quantile(&total, 0.95)),
-        ms(quantile(&total, 1.0)),
-    );
-    let split: Vec<String> = StageTimes::default()
+    }
+}
+
+/// Runs every frame `rounds` times on each detector of `dets` (round-robin
+/// over the set; each frame on every detector in turn, the order turned
+/// round every round, so that a busy spell of the machine falls on all of
+/// them) and prints, per detector, the per-frame quantiles and the median
+/// per-stage split, then the ratios of the first detector's quantiles to
+/// the others'. Panics if the detectors disagree on any detection.
+fn summary(dets: &mut [(String, Detector)], set: &FrameSet, rounds: usize) {
+    let mut runs: Vec<Timed> = dets
         .iter()
-        .filter(|(n, _)| *n != "total")
-        .map(|(n, _)| format!("{n} {}", ms(quantile(&stage(n), 0.5))))
+        .map(|_| Timed {
+            times: vec![Vec::new(); set.frames.len()],
+            found: 0,
+            digest: 0,
+        })
         .collect();
-    println!("  stage medians over frames: {}", split.join(", "));
+    let mut digests: Vec<_> = dets
+        .iter()
+        .map(|_| std::collections::hash_map::DefaultHasher::new())
+        .collect();
+    for round in 0..rounds {
+        for (i, frame) in set.frames.iter().enumerate() {
+            let n = dets.len();
+            for k in 0..n {
+                let d = if (round + i) % 2 == 0 { k } else { n - 1 - k };
+                let det = &mut dets[d].1;
+                let found_here = det.detect(frame);
+                if round == 0 {
+                    runs[d].found += found_here.len();
+                    // Every field, floats in their shortest exact form:
+                    // any change of the detector's output shows as a new
+                    // digest (the same on every run of one toolchain).
+                    format!("{found_here:?}").hash(&mut digests[d]);
+                }
+                runs[d].times[i].push(det.stats().times);
+            }
+        }
+    }
+    for (r, h) in runs.iter_mut().zip(&digests) {
+        r.digest = h.finish();
+    }
+    let quantiles = |r: &Timed| {
+        let total = r.stage("total");
+        [0.5, 0.95, 1.0].map(|q| quantile(&total, q))
+    };
+    for ((label, _), r) in dets.iter().zip(&runs) {
+        let [med, p95, max] = quantiles(r);
+        println!(
+            "{} [{label}]: {} frames {}x{}, {} tags placed, {} found (digest {:016x}); per frame over {} runs: median {}, p95 {}, max {}",
+            set.name,
+            set.frames.len(),
+            set.frames[0].width(),
+            set.frames[0].height(),
+            set.tags,
+            r.found,
+            r.digest,
+            rounds,
+            ms(med),
+            ms(p95),
+            ms(max),
+        );
+        let split: Vec<String> = StageTimes::default()
+            .iter()
+            .filter(|(n, _)| *n != "total")
+            .map(|(n, _)| format!("{n} {}", ms(quantile(&r.stage(n), 0.5))))
+            .collect();
+        println!("  stage medians over frames: {}", split.join(", "));
+    }
+    let base = quantiles(&runs[0]);
+    for ((label, _), r) in dets.iter().zip(&runs).skip(1) {
+        assert_eq!(
+            (r.found, r.digest),
+            (runs[0].found, runs[0].digest),
+            "{}: [{label}] and [{}] found different tags",
+            set.name,
+            dets[0].0
+        );
+        let q = quantiles(r);
+        let ratio = |k: usize| base[k].as_secs_f64() / q[k].as_secs_f64().max(1e-12);
+        println!(
+            "  {} speed-up [{}] / [{label}]: median {:.2}x, p95 {:.2}x, max {:.2}x (same detections)",
+            set.name,
+            dets[0].0,
+            ratio(0),
+            ratio(1),
+            ratio(2)
+        );
+    }
 }
 
 fn bench(c: &mut Criterion) {
@@ -393,10 +277,26 @@ fn bench(c: &mut Criterion) {
         .and_then(|v| v.parse().ok())
         .unwrap_or(ROUNDS)
         .max(1);
-    let mut det = Detector::new(DetectorConfig::default()).unwrap();
-    for set in &sets {
-        summary(&mut det, set, rounds);
+    let threads = std::env::var("COPPERTAG_BENCH_THREADS")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(THREADS);
+    let detector = |threads: usize| {
+        let label = format!("{threads} thread{}", if threads == 1 { "" } else { "s" });
+        let cfg = DetectorConfig {
+            threads,
+            ..DetectorConfig::default()
+        };
+        (label, Detector::new(cfg).unwrap())
+    };
+    let mut dets = vec![detector(1)];
+    if threads != 1 {
+        dets.push(detector(threads));
     }
+    for set in &sets {
+        summary(&mut dets, set, rounds);
+    }
+    let mut det = dets.swap_remove(0).1;
     let mut group = c.benchmark_group("wild");
     // A sample is a whole set (a third of a second and more): flat
     // sampling, ten of them, keeps the run under a minute.

@@ -52,6 +52,7 @@ def test_keywords_reach_the_detector() -> None:
         ("dp_epsilon", float("nan")),
         ("corner_min_angle_deg", 95.0),
         ("max_candidates", 0),
+        ("threads", 257),
         ("recover_occluded", 1),
         ("min_line_length", 2 ** 70),
     ],

@@ -26,6 +26,7 @@
 
 use super::corners::{Corner, CornerParams, REACH_PER_GAP};
 use super::lines::{Line, Polygons};
+use super::parallel::{collect_ranges, Workers};
 use crate::math::{cross, dot, intersect, norm, sub};
 
 /// Two pieces of one edge turn by at most this (degrees): the fit of a
@@ -199,8 +200,18 @@ fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
     (q[1] - p[1]).abs() <= r
 }
 
-/// Finds the bridges between the lines of `polys` and fills `out`.
-pub(crate) fn find_bridges(polys: &Polygons, out: &mut Links) {
+/// Fewest lines in one piece of the parallel neighbour searches of
+/// [`find_bridges`] and [`add_gap_corners`].
+const MIN_LINES_PER_PIECE: usize = 256;
+
+/// Finds the bridges between the lines of `polys` and fills `out`; the
+/// neighbour search on `workers`' threads if given (in runs of lines, the
+/// same pairs in the same order either way).
+pub(crate) fn find_bridges<W: Default + Send>(
+    polys: &Polygons,
+    workers: Option<&Workers<W>>,
+    out: &mut Links,
+) {
     let lines = &polys.lines;
     let n = lines.len();
     out.border_of.clear();
@@ -226,15 +237,18 @@ pub(crate) fn find_bridges(polys: &Polygons, out: &mut Links) {
     }
     let mut pairs = std::mem::take(&mut out.pairs);
     pairs.clear();
-    for a in 0..n {
-        let la = &lines[a];
-        let r = GAP_PER_LENGTH * length(la) + BRIDGE_OVERLAP;
-        facing(lines, &out.by_start, &out.by_end, a, r, |b, from, to| {
-            if same_way(la, &lines[b]) && continues(&lines[from], &lines[to]) {
-                pairs.push((from as u32, to as u32));
-            }
-        });
-    }
+    let (by_start, by_end) = (&out.by_start, &out.by_end);
+    collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut pairs, |r, pairs| {
+        for a in r {
+            let la = &lines[a];
+            let r = GAP_PER_LENGTH * length(la) + BRIDGE_OVERLAP;
+            facing(lines, by_start, by_end, a, r, |b, from, to| {
+                if same_way(la, &lines[b]) && continues(&lines[from], &lines[to]) {
+                    pairs.push((from as u32, to as u32));
+                }
+            });
+        }
+    });
     for &(a, b) in &pairs {
         union(&mut out.line_parent, a, b);
         let (ca, cb) = (out.border_of[a as usize], out.border_of[b as usize]);
@@ -284,10 +298,12 @@ fn consecutive(polys: &Polygons, c: u32, a: u32, b: u32) -> bool {
 /// borders into one linked component, so that the quad search across
 /// linked borders sees it. Gap corners are looked for only next to
 /// bridged borders: elsewhere, every cell edge of a large tag would make
-/// them with the cells around it.
-pub(crate) fn add_gap_corners(
+/// them with the cells around it. The neighbour search runs on `workers`'
+/// threads if given (the same corners either way).
+pub(crate) fn add_gap_corners<W: Default + Send>(
     polys: &Polygons,
     p: &CornerParams,
+    workers: Option<&Workers<W>>,
     links: &mut Links,
     corners: &mut Vec<Corner>,
 ) {
@@ -321,21 +337,24 @@ pub(crate) fn add_gap_corners(
         let root = find(&links.border_parent, links.border_of[l]) as usize;
         length(&lines[l]) >= GAP_CORNER_MIN_SHARE * links.longest[root]
     };
-    for x in (0..lines.len()).filter(|&x| eligible(x)) {
-        let r = GAP_PER_LENGTH * length(&lines[x]) + reach;
-        facing(
-            lines,
-            &links.by_start,
-            &links.by_end,
-            x,
-            r,
-            |y, from, to| {
-                if near_bridged(x, y) && eligible(y) {
-                    pairs.push((from as u32, to as u32));
-                }
-            },
-        );
-    }
+    let n = lines.len();
+    collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut pairs, |r, pairs| {
+        for x in r.filter(|&x| eligible(x)) {
+            let r = GAP_PER_LENGTH * length(&lines[x]) + reach;
+            facing(
+                lines,
+                &links.by_start,
+                &links.by_end,
+                x,
+                r,
+                |y, from, to| {
+                    if near_bridged(x, y) && eligible(y) {
+                        pairs.push((from as u32, to as u32));
+                    }
+                },
+            );
+        }
+    });
     pairs.retain(|&(a, b)| long_enough(a as usize, b as usize));
     for &(a, b) in &pairs {
         let (la, lb) = (&lines[a as usize], &lines[b as usize]);
@@ -420,7 +439,7 @@ mod tests {
         ];
         polys.line_ranges = vec![(0, 2), (2, 3), (3, 4)];
         let mut links = Links::default();
-        find_bridges(&polys, &mut links);
+        find_bridges(&polys, None::<&Workers<()>>, &mut links);
         assert_eq!(links.chain(0), links.chain(2));
         assert_ne!(links.chain(0), links.chain(1));
         assert_eq!(links.component(0), links.component(1));

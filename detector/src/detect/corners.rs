@@ -10,6 +10,7 @@
 //! two sides of the black frame.
 
 use super::lines::{Line, Polygons};
+use super::parallel::{collect_ranges, Workers};
 use crate::math::{cross, intersect, norm, sub};
 
 /// A straight piece of a border, start and end point.
@@ -102,10 +103,36 @@ fn corner(
     })
 }
 
-/// Forms the corners of every contour's consecutive lines (cyclically).
-pub(crate) fn find_corners(polys: &Polygons, params: &CornerParams, out: &mut Vec<Corner>) {
+/// Forms the corners of every contour's consecutive lines (cyclically),
+/// on `workers`' threads if given (in runs of borders, the same corners
+/// either way).
+pub(crate) fn find_corners<W: Default + Send>(
+    polys: &Polygons,
+    params: &CornerParams,
+    workers: Option<&Workers<W>>,
+    out: &mut Vec<Corner>,
+) {
     out.clear();
-    for (ci, &(l0, l1)) in polys.line_ranges.iter().enumerate() {
+    let n = polys.line_ranges.len();
+    collect_ranges(workers, n, MIN_BORDERS_PER_PIECE, out, |r, out| {
+        corners_of(polys, r, params, out);
+    });
+}
+
+/// Fewest borders in one piece of [`find_corners`]' parallel work (a few
+/// lines each, each pair a handful of operations).
+const MIN_BORDERS_PER_PIECE: usize = 256;
+
+/// The corners of the borders `range`, appended to `out`.
+fn corners_of(
+    polys: &Polygons,
+    range: std::ops::Range<usize>,
+    params: &CornerParams,
+    out: &mut Vec<Corner>,
+) {
+    let first = range.start;
+    for (ci, &(l0, l1)) in polys.line_ranges[range].iter().enumerate() {
+        let ci = first + ci;
         let (l0, l1) = (l0 as usize, l1 as usize);
         let k = l1 - l0;
         if k < 2 {

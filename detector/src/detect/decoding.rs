@@ -9,6 +9,11 @@
 //! decoded, and the reading with the fewest corrections wins: the right
 //! geometry explains the visible cells best.
 
+use std::collections::VecDeque;
+
+use rayon::prelude::*;
+
+use super::parallel::Workers;
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS};
 use super::reject::plainly_not_a_tag;
@@ -75,33 +80,167 @@ pub(crate) fn decode_candidates(
     p: &DecodingParams,
     scratch: &mut RefineScratch,
 ) -> (Vec<Found>, usize) {
+    let refused = |c: &Candidate| plainly_not_a_tag(img, c, scale, finest_grid(&p.refine));
+    decode_in_order(candidates, scale, p, refused, |j, centre, _| {
+        attempt(img, &candidates[j], scale, centre, targets, p, scratch)
+    })
+}
+
+/// Most candidates decoded at once per worker thread by
+/// [`decode_candidates_par`] (batches start at one per thread and double
+/// while no reading is in vain): enough that a thread rarely waits for
+/// the others at the end of a batch, few enough that little is decoded in
+/// vain when a tag found early in a batch makes the later candidates over
+/// it skipped.
+const BATCH_PER_THREAD: usize = 4;
+
+/// [`decode_candidates`] on `workers`' threads, with the same result. The
+/// skip of a candidate depends on the tags found before it, so candidates
+/// are decoded speculatively in batches, in candidate order: those the
+/// tags found so far do not skip, at most [`BATCH_PER_THREAD`] per thread
+/// and no more than the attempts left. The sequential loop then runs over
+/// the batch's readings, taking a reading only where it would have decoded
+/// that candidate itself; a candidate it decodes that was not in the
+/// batch (a tag it depended on was replaced by a better reading) starts
+/// the next batch. The readings are pure functions of the image and the
+/// candidate, so which thread made one, and when, does not matter.
+pub(crate) fn decode_candidates_par<W: Default + Send>(
+    img: &GrayView<'_>,
+    candidates: &[Candidate],
+    scale: f64,
+    targets: &[Target],
+    p: &DecodingParams,
+    workers: &Workers<W>,
+    scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
+) -> (Vec<Found>, usize) {
+    let (least, most) = (workers.threads(), BATCH_PER_THREAD * workers.threads());
+    let mut batch_len = least;
+    // The first batch is one candidate per thread.
+    let mut wasted = true;
+    let mut ready: VecDeque<(usize, Option<Detection>)> = VecDeque::new();
+    let mut done = 0;
+    let refused = |c: &Candidate| plainly_not_a_tag(img, c, scale, finest_grid(&p.refine));
+    decode_in_order(candidates, scale, p, refused, |j, _, found| {
+        done += 1;
+        while ready.front().is_some_and(|&(k, _)| k < j) {
+            ready.pop_front();
+            wasted = true;
+        }
+        if ready.front().is_none_or(|&(k, _)| k != j) {
+            // Batches grow while every reading is used and fall back to
+            // one candidate per thread after a reading in vain: a tag
+            // found makes the candidates over it skipped, and those come
+            // in runs.
+            wasted |= !ready.is_empty();
+            batch_len = if wasted {
+                least
+            } else {
+                (2 * batch_len).min(most)
+            };
+            wasted = false;
+            let left = p.max_attempts.saturating_sub(done - 1).min(batch_len);
+            let picks: Vec<usize> = std::iter::once(j)
+                .chain((j + 1..candidates.len()).filter(|&k| {
+                    let c = &candidates[k];
+                    plan(c, centre_of(c, scale), found, p).is_some() && !refused(c)
+                }))
+                .take(left.max(1))
+                .collect();
+            let readings: Vec<Option<Detection>> = workers.install(|| {
+                picks
+                    .par_iter()
+                    .map(|&k| {
+                        let c = &candidates[k];
+                        let mut w = workers.scratch();
+                        attempt(
+                            img,
+                            c,
+                            scale,
+                            centre_of(c, scale),
+                            targets,
+                            p,
+                            scratch(&mut w),
+                        )
+                    })
+                    .collect()
+            });
+            ready = picks.into_iter().zip(readings).collect();
+        }
+        ready.pop_front().and_then(|(_, d)| d)
+    })
+}
+
+/// The reading of one candidate: its refined corners decoded.
+fn attempt(
+    img: &GrayView<'_>,
+    cand: &Candidate,
+    scale: f64,
+    centre: [f64; 2],
+    targets: &[Target],
+    p: &DecodingParams,
+    scratch: &mut RefineScratch,
+) -> Option<Detection> {
+    let q = refine_candidate(img, cand, scale, &p.refine, scratch);
+    read(img, cand, &q, centre, targets, &p.decode)
+}
+
+/// Centroid of a candidate's corners at full resolution.
+fn centre_of(cand: &Candidate, scale: f64) -> [f64; 2] {
+    let c = cand.corners.map(|q| to_full(q, scale));
+    [
+        (c[0][0] + c[1][0] + c[2][0] + c[3][0]) / 4.0,
+        (c[0][1] + c[1][1] + c[2][1] + c[3][1]) / 4.0,
+    ]
+}
+
+/// Whether a candidate with centroid `centre` is decoded given the tags
+/// `found` so far: `None` when it is skipped, else the found tag it is a
+/// rival reading of, if any.
+fn plan(
+    cand: &Candidate,
+    centre: [f64; 2],
+    found: &[Found],
+    p: &DecodingParams,
+) -> Option<Option<usize>> {
+    let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+    // A linked candidate (see `quads`) over a tag already read is
+    // never its rival: on large tags the cells bridge each other and
+    // make many of them.
+    if cand.linked && rival.is_some() {
+        return None;
+    }
+    if let Some(r) = rival {
+        let f = &found[r];
+        if f.det.corrected == 0 || f.rivals >= p.max_rivals {
+            return None;
+        }
+    }
+    Some(rival)
+}
+
+/// The sequential decoding loop: each candidate in turn skipped
+/// ([`plan`]), refused by `refused` (see [`plainly_not_a_tag`]; a refused
+/// rival counts as one that did not read) or decoded, the reading of
+/// candidate `j` (centroid `centre`, the tags found so far `found`) from
+/// `reading`. Returns the tags and the number of candidates decoded.
+fn decode_in_order(
+    candidates: &[Candidate],
+    scale: f64,
+    p: &DecodingParams,
+    refused: impl Fn(&Candidate) -> bool,
+    mut reading: impl FnMut(usize, [f64; 2], &[Found]) -> Option<Detection>,
+) -> (Vec<Found>, usize) {
     let mut found: Vec<Found> = Vec::new();
     let mut attempts = 0;
-    for cand in candidates {
+    for (j, cand) in candidates.iter().enumerate() {
         if attempts >= p.max_attempts {
             break;
         }
-        let centre = {
-            let c = cand.corners.map(|q| to_full(q, scale));
-            [
-                (c[0][0] + c[1][0] + c[2][0] + c[3][0]) / 4.0,
-                (c[0][1] + c[1][1] + c[2][1] + c[3][1]) / 4.0,
-            ]
-        };
-        let rival = found.iter().position(|f| inside(&f.det.corners, centre));
-        // A linked candidate (see `quads`) over a tag already read is
-        // never its rival: on large tags the cells bridge each other and
-        // make many of them.
-        if cand.linked && rival.is_some() {
+        let centre = centre_of(cand, scale);
+        let Some(rival) = plan(cand, centre, &found, p) else {
             continue;
-        }
-        if let Some(r) = rival {
-            let f = &found[r];
-            if f.det.corrected == 0 || f.rivals >= p.max_rivals {
-                continue;
-            }
-        }
-        if plainly_not_a_tag(img, cand, scale, finest_grid(&p.refine)) {
+        };
+        if refused(cand) {
             // A refused rival counts as one that did not read.
             if let Some(r) = rival {
                 found[r].rivals += 1;
@@ -109,8 +248,7 @@ pub(crate) fn decode_candidates(
             continue;
         }
         attempts += 1;
-        let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-        let best = read(img, cand, &q, centre, targets, &p.decode);
+        let best = reading(j, centre, &found);
         match (rival, best) {
             (Some(r), Some(b)) => {
                 let f = &mut found[r];
@@ -251,55 +389,81 @@ pub(crate) fn verify_all(
     targets: &[Target],
     p: &DecodingParams,
 ) -> Vec<Detection> {
-    let mut out = Vec::with_capacity(found.len());
-    for mut d in found {
-        let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
-            out.push(d);
-            continue;
-        };
-        match verify(
-            img,
-            &t.family,
-            d.id,
-            &d.corners,
-            d.contrast,
-            d.corrected,
-            &p.decode,
-        ) {
-            Verdict::Fitted(v) => {
-                let side = (0..4)
-                    .map(|k| norm(sub(d.corners[(k + 1) % 4], d.corners[k])))
-                    .sum::<f64>()
-                    / 4.0;
-                let moved = (0..4)
-                    .map(|k| norm(sub(v.corners[k], d.corners[k])))
-                    .fold(0.0, f64::max);
-                let mut sigma = v.sigma;
-                if moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * side) {
-                    d.corners = v.corners;
-                    d.center = v.homography.map([0.0, 0.0]).unwrap_or(d.center);
-                    d.homography = v.homography;
-                } else {
-                    // The kept corner is uncertain by the fit's own sigma
-                    // and by how far the fit puts it.
-                    for (k, sg) in sigma.iter_mut().enumerate() {
-                        *sg = sg.hypot(norm(sub(v.corners[k], d.corners[k])));
-                    }
+    found
+        .into_iter()
+        .filter_map(|d| verify_one(img, d, targets, p))
+        .collect()
+}
+
+/// [`verify_all`] on `workers`' threads, one detection per task (each
+/// fit is a pure function of the image and the detection), in the same
+/// order.
+pub(crate) fn verify_all_par<W: Default + Send>(
+    img: &GrayView<'_>,
+    found: Vec<Detection>,
+    targets: &[Target],
+    p: &DecodingParams,
+    workers: &Workers<W>,
+) -> Vec<Detection> {
+    let kept: Vec<Option<Detection>> = workers.install(|| {
+        found
+            .into_par_iter()
+            .map(|d| verify_one(img, d, targets, p))
+            .collect()
+    });
+    kept.into_iter().flatten().collect()
+}
+
+/// One detection of [`verify_all`]: kept (perhaps with new corners), or
+/// `None` when dropped.
+fn verify_one(
+    img: &GrayView<'_>,
+    mut d: Detection,
+    targets: &[Target],
+    p: &DecodingParams,
+) -> Option<Detection> {
+    let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
+        return Some(d);
+    };
+    match verify(
+        img,
+        &t.family,
+        d.id,
+        &d.corners,
+        d.contrast,
+        d.corrected,
+        &p.decode,
+    ) {
+        Verdict::Fitted(v) => {
+            let side = (0..4)
+                .map(|k| norm(sub(d.corners[(k + 1) % 4], d.corners[k])))
+                .sum::<f64>()
+                / 4.0;
+            let moved = (0..4)
+                .map(|k| norm(sub(v.corners[k], d.corners[k])))
+                .fold(0.0, f64::max);
+            let mut sigma = v.sigma;
+            if moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * side) {
+                d.corners = v.corners;
+                d.center = v.homography.map([0.0, 0.0]).unwrap_or(d.center);
+                d.homography = v.homography;
+            } else {
+                // The kept corner is uncertain by the fit's own sigma
+                // and by how far the fit puts it.
+                for (k, sg) in sigma.iter_mut().enumerate() {
+                    *sg = sg.hypot(norm(sub(v.corners[k], d.corners[k])));
                 }
-                for (e, u) in d.estimated.iter_mut().zip(v.unsupported) {
-                    *e |= u;
-                }
-                d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
-                out.push(d);
             }
-            // A likelihood reading never stands without the fit.
-            Verdict::Unfit if !d.likelihood && d.corrected + UNFIT_MARGIN <= t.max_corrected => {
-                out.push(d)
+            for (e, u) in d.estimated.iter_mut().zip(v.unsupported) {
+                *e |= u;
             }
-            Verdict::Unfit | Verdict::Contradicted => {}
+            d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
+            Some(d)
         }
+        // A likelihood reading never stands without the fit.
+        Verdict::Unfit if !d.likelihood && d.corrected + UNFIT_MARGIN <= t.max_corrected => Some(d),
+        Verdict::Unfit | Verdict::Contradicted => None,
     }
-    out
 }
 
 /// Whether reading `a` of a tag is better than reading `b`: a reading by

@@ -28,6 +28,7 @@
 
 use super::contours::Contours;
 use super::lines::Polygons;
+use super::parallel::Workers;
 use crate::math::{cross, dot, fp, norm, sub};
 
 /// A fitted ellipse in working-image coordinates.
@@ -180,19 +181,53 @@ struct Conic {
     rms: f64,
 }
 
-/// Finds ellipse candidates.
-pub(crate) fn find_ellipses(
+/// Finds ellipse candidates: the arcs of each border (on `workers`'
+/// threads if given, in runs of borders, the same arcs in the same order
+/// either way), then merged.
+pub(crate) fn find_ellipses<W: Default + Send>(
     contours: &Contours,
     polys: &Polygons,
     params: &EllipseParams,
+    workers: Option<&Workers<W>>,
     scratch: &mut EllipseScratch,
     out: &mut Vec<Ellipse>,
 ) {
     out.clear();
     scratch.arcs.clear();
+    let n = contours.list.len();
+    match workers {
+        None => arcs_of(contours, polys, 0..n, params, scratch),
+        Some(w) => {
+            let parts = w.map_ranges(n, MIN_BORDERS_PER_PIECE, |r| {
+                let mut s = EllipseScratch::default();
+                arcs_of(contours, polys, r, params, &mut s);
+                s.arcs
+            });
+            for part in parts {
+                scratch.arcs.extend(part);
+            }
+        }
+    }
+    merge(contours, params, scratch, out);
+}
+
+/// Fewest borders in one piece of [`find_ellipses`]' parallel work (most
+/// are too short to look at).
+const MIN_BORDERS_PER_PIECE: usize = 256;
+
+/// The arcs of the borders `range`, appended to `scratch.arcs`.
+fn arcs_of(
+    contours: &Contours,
+    polys: &Polygons,
+    range: std::ops::Range<usize>,
+    params: &EllipseParams,
+    scratch: &mut EllipseScratch,
+) {
     let max_turn = MAX_TURN_DEG.to_radians();
     let min_turn = MIN_TURN_DEG.to_radians();
-    for (ci, c) in contours.list.iter().enumerate() {
+    let first = range.start;
+    for (ci, c) in contours.list[range].iter().enumerate() {
+        let ci = first + ci;
         if (c.len as usize) < params.min_arc_points {
             continue;
         }
@@ -281,7 +316,6 @@ pub(crate) fn find_ellipses(
         }
         scratch.junctions = jn;
     }
-    merge(contours, params, scratch, out);
 }
 
 /// Where a rim runs into an occluder the border turns onto the occluder's

@@ -13,6 +13,7 @@
 //! lines are simply reversed and no gradient has to be sampled.
 
 use super::contours::Contours;
+use super::parallel::Workers;
 use crate::math::{cross, dot, fit_line, fp, norm, sub};
 
 /// A fitted line segment in working-image coordinates, dark on its right.
@@ -215,13 +216,54 @@ pub(crate) fn side_line(pts: &[[i32; 2]], i: usize, j: usize, trim: usize) -> Op
 /// `min_len` long). Lines of a contour are kept in traversal order; borders
 /// are traversed with the dark side on the left, so each line is reversed
 /// to have the dark side on its right.
-pub(crate) fn extract(contours: &Contours, params: &LineParams, out: &mut Polygons) {
-    let (eps, min_len) = (params.dp_epsilon, params.min_length);
+/// On `workers`' threads if given, in runs of borders (the same polygons
+/// and lines either way).
+pub(crate) fn extract<W: Default + Send>(
+    contours: &Contours,
+    params: &LineParams,
+    workers: Option<&Workers<W>>,
+    out: &mut Polygons,
+) {
     out.vertices.clear();
     out.vertex_ranges.clear();
     out.lines.clear();
     out.line_ranges.clear();
-    for c in &contours.list {
+    let n = contours.list.len();
+    let Some(w) = workers else {
+        extract_range(contours, 0..n, params, out);
+        return;
+    };
+    let parts = w.map_ranges(n, MIN_BORDERS_PER_PIECE, |r| {
+        let mut part = Polygons::default();
+        extract_range(contours, r, params, &mut part);
+        part
+    });
+    for part in parts {
+        let (v, l) = (out.vertices.len() as u32, out.lines.len() as u32);
+        out.vertices.extend(part.vertices);
+        out.lines.extend(part.lines);
+        let shift = |(a, b): (u32, u32), by: u32| (a + by, b + by);
+        out.vertex_ranges
+            .extend(part.vertex_ranges.into_iter().map(|r| shift(r, v)));
+        out.line_ranges
+            .extend(part.line_ranges.into_iter().map(|r| shift(r, l)));
+    }
+}
+
+/// Fewest borders in one piece of [`extract`]'s parallel work: a border
+/// takes a microsecond or so, a piece should take more than handing it to
+/// a thread.
+const MIN_BORDERS_PER_PIECE: usize = 64;
+
+/// [`extract`] of the borders `range`, appended to `out`.
+fn extract_range(
+    contours: &Contours,
+    range: std::ops::Range<usize>,
+    params: &LineParams,
+    out: &mut Polygons,
+) {
+    let (eps, min_len) = (params.dp_epsilon, params.min_length);
+    for c in &contours.list[range] {
         let pts = contours.points_of(c);
         let v0 = out.vertices.len();
         dp_closed(pts, eps, &mut out.stack, &mut out.vertices);

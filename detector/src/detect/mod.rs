@@ -40,6 +40,7 @@ pub(crate) mod corners;
 pub(crate) mod decoding;
 pub(crate) mod ellipses;
 pub(crate) mod lines;
+mod parallel;
 pub(crate) mod quads;
 pub(crate) mod refine;
 pub(crate) mod reject;
@@ -51,7 +52,10 @@ use std::time::{Duration, Instant};
 
 use serde::Serialize;
 
-pub use config::{DetectorConfig, FamilySetting, CT8_MAX_CORRECTED};
+pub use config::{DetectorConfig, FamilySetting, CT8_MAX_CORRECTED, MAX_THREADS};
+
+use parallel::Workers;
+use rayon::prelude::*;
 
 use crate::decode::DecodeParams;
 use crate::homography::Homography;
@@ -242,7 +246,8 @@ impl StageParams {
     }
 }
 
-/// Buffers kept between frames.
+/// Buffers kept between frames (the detector's own, and one per worker
+/// thread when it has a pool).
 #[derive(Debug, Default)]
 struct Workspace {
     seg: Segmentation,
@@ -264,13 +269,33 @@ struct Segmentation {
     qscratch: quads::QuadScratch,
 }
 
+/// Fewest working rows of a threshold band: each band re-reads the
+/// `2 radius` rows around its ends (radius 10 by default), so shorter
+/// bands would spend a good share of their time on rows of their
+/// neighbours.
+const MIN_BAND_ROWS: usize = 64;
+
+/// Bands of the threshold per worker thread: two, so that a thread
+/// slowed by another process leaves a band for the other threads to take.
+const BANDS_PER_THREAD: usize = 2;
+
 impl Segmentation {
     /// Stages 1 (downsampling and threshold) to 5 (candidate quads) on
-    /// `img`; the candidates are left in `self.candidates`, each stage's
-    /// time added to `times`. Returns the working image's scale.
-    fn run(&mut self, img: &GrayView<'_>, p: &StageParams, times: &mut StageTimes) -> f64 {
+    /// `img`, on `workers`' threads if given; the candidates are left in
+    /// `self.candidates`, each stage's time added to `times`. Returns the
+    /// working image's scale.
+    fn run(
+        &mut self,
+        img: &GrayView<'_>,
+        p: &StageParams,
+        workers: Option<&Workers<Workspace>>,
+        times: &mut StageTimes,
+    ) -> f64 {
         let mut laps = Laps(Instant::now());
-        let work = threshold::threshold(img, &p.threshold, &mut self.tscratch, &mut self.binary);
+        let work = match workers {
+            None => threshold::threshold(img, &p.threshold, &mut self.tscratch, &mut self.binary),
+            Some(w) => threshold_bands(img, &p.threshold, w, &mut self.binary),
+        };
         times.threshold += laps.lap();
         let (ww, wh) = (work.width, work.height);
         contours::find_contours(
@@ -282,17 +307,24 @@ impl Segmentation {
             &mut self.contours,
         );
         times.contours += laps.lap();
-        lines::extract(&self.contours, &p.lines, &mut self.polys);
+        lines::extract(&self.contours, &p.lines, workers, &mut self.polys);
         times.lines += laps.lap();
-        corners::find_corners(&self.polys, &p.corners, &mut self.corners);
-        bridges::find_bridges(&self.polys, &mut self.links);
+        corners::find_corners(&self.polys, &p.corners, workers, &mut self.corners);
+        bridges::find_bridges(&self.polys, workers, &mut self.links);
         let plain = self.corners.len();
-        bridges::add_gap_corners(&self.polys, &p.corners, &mut self.links, &mut self.corners);
+        bridges::add_gap_corners(
+            &self.polys,
+            &p.corners,
+            workers,
+            &mut self.links,
+            &mut self.corners,
+        );
         times.corners += laps.lap();
         ellipses::find_ellipses(
             &self.contours,
             &self.polys,
             &p.ellipses,
+            workers,
             &mut self.escratch,
             &mut self.ellipses,
         );
@@ -310,6 +342,78 @@ impl Segmentation {
         times.quads += laps.lap();
         work.scale
     }
+}
+
+/// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
+/// threads, each with the buffers of the thread it runs on; the same bytes
+/// as one pass.
+fn threshold_bands(
+    img: &GrayView<'_>,
+    p: &threshold::ThresholdParams,
+    workers: &Workers<Workspace>,
+    out: &mut Vec<u8>,
+) -> threshold::Working {
+    let work = threshold::working(img, p);
+    let (w, h) = (work.width, work.height);
+    let rows = threshold::frame(&work, out);
+    let bands = (workers.threads() * BANDS_PER_THREAD)
+        .min(h / MIN_BAND_ROWS)
+        .max(1);
+    let per = h.div_ceil(bands).max(1);
+    workers.install(|| {
+        rows.par_chunks_mut(per * (w + 2))
+            .enumerate()
+            .for_each(|(k, band)| {
+                let y0 = k * per;
+                let mut ws = workers.scratch();
+                let rows = y0..(y0 + per).min(h);
+                threshold::threshold_rows(img, p, &work, rows, &mut ws.seg.tscratch, band);
+            });
+    });
+    work
+}
+
+/// The full-resolution second look in one small-tag region `r` of `img`:
+/// stages 1-5 on the region at full resolution, then its rim's candidates decoded, at most `budget` of them. Returns
+/// the tags found and the candidates decoded.
+fn small_region(
+    img: &GrayView<'_>,
+    r: &small::Region,
+    d: &SmallPass<'_>,
+    budget: usize,
+    ws: &mut Workspace,
+) -> (Vec<decoding::Found>, usize) {
+    // The regions' own stage times are not split out: they are the
+    // `small` stage.
+    let mut inner = StageTimes::default();
+    let view = img.crop(r.x0, r.y0, r.w, r.h);
+    ws.seg.run(&view, d.full, None, &mut inner);
+    let shifted: Vec<quads::Candidate> = ws
+        .seg
+        .candidates
+        .iter()
+        .filter_map(|c| small::of_rim(c, r))
+        .collect();
+    decoding::decode_candidates(
+        img,
+        &shifted,
+        1.0,
+        d.targets,
+        &decoding::DecodingParams {
+            max_attempts: budget,
+            ..*d.decoding
+        },
+        &mut ws.rscratch,
+    )
+}
+
+/// What [`small_region`] reads of the detector.
+struct SmallPass<'a> {
+    /// Stage parameters at full resolution.
+    full: &'a StageParams,
+    targets: &'a [decoding::Target],
+    /// Decoding parameters of the frame (the budget aside).
+    decoding: &'a decoding::DecodingParams,
 }
 
 /// Stage stopwatch: each [`Laps::lap`] returns the time since the last.
@@ -353,6 +457,9 @@ pub struct Detector {
     full_params: StageParams,
     targets: Vec<decoding::Target>,
     ws: Workspace,
+    /// The worker threads and their buffers, when
+    /// [`DetectorConfig::threads`] asks for more than one.
+    workers: Option<Workers<Workspace>>,
     stats: DetectionStats,
 }
 
@@ -372,7 +479,17 @@ impl Detector {
             downsample: 1,
             ..config.clone()
         };
+        let threads = match config.threads {
+            0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+            n => n,
+        };
+        let workers = if threads > 1 {
+            Some(Workers::new(threads)?)
+        } else {
+            None
+        };
         Ok(Self {
+            workers,
             params: StageParams::new(&config),
             full_params: StageParams::new(&full),
             config,
@@ -397,6 +514,28 @@ impl Detector {
     /// are sorted by family and id; each physical tag is reported once.
     pub fn detect<'a>(&mut self, img: impl Into<GrayView<'a>>) -> Vec<Detection> {
         let img = img.into();
+        // The whole frame runs on one of the pool's threads: the parallel
+        // steps inside then hand work to the other threads by rayon's work
+        // stealing, where each step entered from outside the pool would
+        // wait for a pool thread to wake up and for the caller to be woken
+        // again (tens of microseconds each, and a frame has dozens of
+        // steps). Taken out of `self` for the call; a panic in a stage
+        // leaves the detector without its pool (one thread), not broken.
+        let workers = self.workers.take();
+        let out = match &workers {
+            None => self.detect_on(img, None),
+            Some(w) => w.install(|| self.detect_on(img, Some(w))),
+        };
+        self.workers = workers;
+        out
+    }
+
+    /// [`Detector::detect`] with the pool `workers`, if any.
+    fn detect_on(
+        &mut self,
+        img: GrayView<'_>,
+        workers: Option<&Workers<Workspace>>,
+    ) -> Vec<Detection> {
         let t0 = Instant::now();
         let mut laps = Laps(t0);
         let (p, ws) = (&self.params, &mut self.ws);
@@ -405,7 +544,7 @@ impl Detector {
             height: img.height(),
             ..DetectionStats::default()
         };
-        let scale = ws.seg.run(&img, p, &mut st.times);
+        let scale = ws.seg.run(&img, p, workers, &mut st.times);
         let seg = &ws.seg;
         (
             st.contours,
@@ -421,51 +560,79 @@ impl Detector {
             seg.candidates.len(),
         );
         laps.lap();
-        let (mut found, mut attempts) = decoding::decode_candidates(
-            &img,
-            &ws.seg.candidates,
-            scale,
-            &self.targets,
-            &p.decoding,
-            &mut ws.rscratch,
-        );
+        let cands = &ws.seg.candidates;
+        let (mut found, mut attempts) = match workers {
+            None => decoding::decode_candidates(
+                &img,
+                cands,
+                scale,
+                &self.targets,
+                &p.decoding,
+                &mut ws.rscratch,
+            ),
+            Some(w) => decoding::decode_candidates_par(
+                &img,
+                cands,
+                scale,
+                &self.targets,
+                &p.decoding,
+                w,
+                |s: &mut Workspace| &mut s.rscratch,
+            ),
+        };
         st.times.decode = laps.lap();
         if self.config.small_tags && scale > 1.0 {
             let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
             let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
             st.small_regions = regions.len();
-            // The regions' own stage times are not split out: they are
-            // the `small` stage.
-            let mut inner = StageTimes::default();
-            for r in regions {
-                let view = img.crop(r.x0, r.y0, r.w, r.h);
-                ws.seg.run(&view, &self.full_params, &mut inner);
-                let shifted: Vec<quads::Candidate> = ws
-                    .seg
-                    .candidates
-                    .iter()
-                    .filter_map(|c| small::of_rim(c, &r))
-                    .collect();
-                let budget = p.decoding.max_attempts.saturating_sub(attempts);
-                let (more, n) = decoding::decode_candidates(
-                    &img,
-                    &shifted,
-                    1.0,
-                    &self.targets,
-                    &decoding::DecodingParams {
-                        max_attempts: budget,
-                        ..p.decoding
-                    },
-                    &mut ws.rscratch,
-                );
-                attempts += n;
-                found.extend(more);
+            let this = &SmallPass {
+                full: &self.full_params,
+                targets: &self.targets,
+                decoding: &p.decoding,
+            };
+            match workers {
+                None => {
+                    for r in &regions {
+                        let budget = p.decoding.max_attempts.saturating_sub(attempts);
+                        let (more, n) = small_region(&img, r, this, budget, ws);
+                        attempts += n;
+                        found.extend(more);
+                    }
+                }
+                Some(w) => {
+                    // Each region is looked at with every attempt left
+                    // before the first; in order, a region whose run
+                    // decoded more than were left after the regions
+                    // before it is looked at again with what was left (a
+                    // run with a smaller budget is the larger one's,
+                    // stopped early).
+                    let left = p.decoding.max_attempts.saturating_sub(attempts);
+                    let runs: Vec<_> = w.install(|| {
+                        regions
+                            .par_iter()
+                            .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
+                            .collect()
+                    });
+                    for (r, (more, n)) in regions.iter().zip(runs) {
+                        let budget = p.decoding.max_attempts.saturating_sub(attempts);
+                        let (more, n) = if n <= budget {
+                            (more, n)
+                        } else {
+                            small_region(&img, r, this, budget, ws)
+                        };
+                        attempts += n;
+                        found.extend(more);
+                    }
+                }
             }
             st.times.small = laps.lap();
         }
         let out = decoding::one_per_tag(found);
         st.times.dedup = laps.lap();
-        let out = decoding::verify_all(&img, out, &self.targets, &p.decoding);
+        let out = match workers {
+            None => decoding::verify_all(&img, out, &self.targets, &p.decoding),
+            Some(w) => decoding::verify_all_par(&img, out, &self.targets, &p.decoding, w),
+        };
         st.times.verify = laps.lap();
         st.decode_attempts = attempts;
         st.detections = out.len();

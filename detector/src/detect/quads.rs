@@ -770,7 +770,11 @@ mod tests {
         ];
         polys.line_ranges = vec![(0, 3), (3, 6)];
         let mut links = Links::default();
-        find_bridges(&polys, &mut links);
+        find_bridges(
+            &polys,
+            None::<&super::super::parallel::Workers<()>>,
+            &mut links,
+        );
         let with = |mut c: Corner, lines: [u32; 2]| {
             c.lines = lines;
             c

@@ -65,54 +65,115 @@ pub(crate) struct Working {
     pub scale: f64,
 }
 
-/// Stage 1 on `img`: the working image is `img` itself, or its 2x box
+/// The working image of stage 1 on `img`: `img` itself, or its 2x box
 /// downsampling when `p.downsample` is set and `img` is at least
-/// [`MIN_DOWNSAMPLE_SIZE`] pixels each way; `out` becomes its
-/// [adaptive threshold](adaptive_threshold_into).
+/// [`MIN_DOWNSAMPLE_SIZE`] pixels each way.
+pub(crate) fn working(img: &GrayView<'_>, p: &ThresholdParams) -> Working {
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    if p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE {
+        Working {
+            width: w / 2,
+            height: h / 2,
+            scale: DOWNSAMPLE_FACTOR,
+        }
+    } else {
+        Working {
+            width: w,
+            height: h,
+            scale: 1.0,
+        }
+    }
+}
+
+/// Stage 1 on `img`: `out` becomes the [adaptive
+/// threshold](threshold_rows) of its [working image](working), a
+/// `(w + 2) x (h + 2)` buffer with a one-pixel zero border (what the
+/// border follower needs). Every byte of `out` is written, so it needs no
+/// clearing between frames.
 pub(crate) fn threshold(
     img: &GrayView<'_>,
     p: &ThresholdParams,
     s: &mut ThresholdScratch,
     out: &mut Vec<u8>,
 ) -> Working {
-    let (w, h) = (img.width() as usize, img.height() as usize);
-    let mut source = if p.downsample && w >= MIN_DOWNSAMPLE_SIZE && h >= MIN_DOWNSAMPLE_SIZE {
-        // Every byte is written by `Rows::produce` before it is read.
-        s.small.resize((w / 2) * (h / 2), 0);
+    let work = working(img, p);
+    let rows = frame(&work, out);
+    threshold_rows(img, p, &work, 0..work.height, s, rows);
+    work
+}
+
+/// Sizes `out` for the thresholded `work` image, zeroes its top and bottom
+/// border rows and returns the rows between them (`work.height` rows of
+/// `work.width + 2` bytes), for [`threshold_rows`] to fill whole or in
+/// bands.
+pub(crate) fn frame<'o>(work: &Working, out: &'o mut Vec<u8>) -> &'o mut [u8] {
+    let (w, h) = (work.width, work.height);
+    let pw = w + 2;
+    out.resize(pw * (h + 2), 0);
+    if w == 0 || h == 0 {
+        out.fill(0);
+    }
+    out[..pw].fill(0);
+    out[(h + 1) * pw..].fill(0);
+    &mut out[pw..(h + 1) * pw]
+}
+
+/// Rows `rows` of the adaptive threshold of `img`'s working image `work`
+/// into `out` (those rows of the padded binary image, `work.width + 2`
+/// bytes each, see [`frame`]). A pixel becomes 1 (dark, foreground) when
+/// it is more than `p.offset` grey levels below the mean of the
+/// `(2 radius + 1)^2` window around it (the window is clipped at the image
+/// border). Each row's window sums are made from the working rows around
+/// it alone, so any split of the rows into bands gives the same bytes as
+/// one pass over them all; a band re-reads the `2 radius` working rows
+/// around its ends.
+pub(crate) fn threshold_rows(
+    img: &GrayView<'_>,
+    p: &ThresholdParams,
+    work: &Working,
+    rows: std::ops::Range<usize>,
+    s: &mut ThresholdScratch,
+    out: &mut [u8],
+) {
+    let (w, h) = (work.width, work.height);
+    if w == 0 || h == 0 || rows.is_empty() {
+        return;
+    }
+    let r = p.radius.max(1);
+    let mut source = if work.scale == DOWNSAMPLE_FACTOR {
+        // The working rows the band reads; every byte is written by
+        // `Rows::produce` before it is read.
+        let base = rows.start.saturating_sub(r);
+        let end = (rows.end + r).min(h);
+        s.small.resize(w * (end - base), 0);
         Rows::Half {
             img: *img,
             small: &mut s.small,
+            base,
         }
     } else {
         Rows::Full(*img)
     };
-    let (width, height) = source.size();
-    adaptive_threshold_into(
+    threshold_band(
         &mut source,
-        p.radius,
+        rows,
+        r,
         p.offset,
         &mut s.colsum,
         &mut s.prefix,
         out,
     );
-    Working {
-        width,
-        height,
-        scale: if matches!(source, Rows::Half { .. }) {
-            DOWNSAMPLE_FACTOR
-        } else {
-            1.0
-        },
-    }
 }
 
 /// Rows of the working image: the input's own, or made one by one (in
-/// order) by 2x downsampling into `small`.
+/// order) by 2x downsampling into `small`, which holds working rows from
+/// `base` on.
 enum Rows<'a, 'b> {
     Full(GrayView<'a>),
     Half {
         img: GrayView<'a>,
         small: &'b mut [u8],
+        base: usize,
     },
 }
 
@@ -127,9 +188,13 @@ impl Rows<'_, '_> {
 
     /// Makes row `y` readable by [`Rows::row`]; called once per row.
     fn produce(&mut self, y: usize) {
-        if let Rows::Half { img, small } = self {
+        if let Rows::Half { img, small, base } = self {
             let w = img.width() as usize / 2;
-            downsample_row(img.row(2 * y), img.row(2 * y + 1), &mut small[y * w..][..w]);
+            downsample_row(
+                img.row(2 * y),
+                img.row(2 * y + 1),
+                &mut small[(y - *base) * w..][..w],
+            );
         }
     }
 
@@ -137,9 +202,9 @@ impl Rows<'_, '_> {
     fn row(&self, y: usize) -> &[u8] {
         match self {
             Rows::Full(v) => v.row(y),
-            Rows::Half { img, small } => {
+            Rows::Half { img, small, base } => {
                 let w = img.width() as usize / 2;
-                &small[y * w..][..w]
+                &small[(y - *base) * w..][..w]
             }
         }
     }
@@ -270,55 +335,43 @@ fn threshold_row(
     }
 }
 
-/// Adaptive threshold of the working image `src` (`w` x `h`) into `out`, a
-/// `(w + 2) x (h + 2)` buffer with a one-pixel zero border (what the border
-/// follower needs). A pixel becomes 1 (dark, foreground) when it is more
-/// than `offset` grey levels below the mean of the `(2 radius + 1)^2`
-/// window around it (the window is clipped at the image border).
-///
-/// `colsum` and `prefix` are scratch space, resized here; every byte of
-/// `out` is written, so it needs no clearing between frames.
-fn adaptive_threshold_into(
+/// Rows `rows` of the adaptive threshold of the working image `src` into
+/// `out` (see [`threshold_rows`]). `colsum` and `prefix` are scratch
+/// space, resized here.
+fn threshold_band(
     src: &mut Rows<'_, '_>,
-    radius: usize,
+    rows: std::ops::Range<usize>,
+    r: usize,
     offset: u8,
     colsum: &mut Vec<u32>,
     prefix: &mut Vec<u32>,
-    out: &mut Vec<u8>,
+    out: &mut [u8],
 ) {
     let (w, h) = src.size();
     let pw = w + 2;
-    out.resize(pw * (h + 2), 0);
-    out[..pw].fill(0);
-    out[(h + 1) * pw..].fill(0);
-    if w == 0 || h == 0 {
-        out.fill(0);
-        return;
-    }
-    let r = radius.max(1);
     let off = u32::from(offset);
+    let y0 = rows.start;
     colsum.clear();
     colsum.resize(w, 0);
-    // Rows [0, r] start in the sums; row y then adds y + r and drops
-    // y - r - 1, each when it exists.
-    let first = (r + 1).min(h);
-    for y in 0..first {
+    // Rows [y0 - r, y0 + r] start in the sums; each later row y then adds
+    // y + r and drops y - r - 1, each when it exists.
+    for y in y0.saturating_sub(r)..(y0 + r + 1).min(h) {
         src.produce(y);
         add_row(colsum, src.row(y));
     }
-    for y in 0..h {
-        let (add, drop) = (y + r, y.checked_sub(r + 1));
-        if y > 0 && add < h {
+    for (y, line) in rows.zip(out.chunks_exact_mut(pw)) {
+        let step = y > y0;
+        let (add, drop) = (y + r, if step { y.checked_sub(r + 1) } else { None });
+        if step && add < h {
             src.produce(add);
         }
-        match (y > 0 && add < h, drop) {
+        match (step && add < h, drop) {
             (true, Some(d)) => slide(colsum, src.row(add), src.row(d)),
             (true, None) => add_row(colsum, src.row(add)),
             (false, Some(d)) => sub_row(colsum, src.row(d)),
             (false, None) => {}
         }
         let rows = ((y + r + 1).min(h) - y.saturating_sub(r)) as u32;
-        let line = &mut out[(y + 1) * pw..][..pw];
         line[0] = 0;
         line[pw - 1] = 0;
         threshold_row(src.row(y), colsum, rows, r, off, prefix, &mut line[1..=w]);
@@ -395,6 +448,27 @@ mod tests {
         (out, size)
     }
 
+    /// The stage in bands cut at `cuts` (working rows, any order, out of
+    /// range ones ignored), each band with fresh buffers, as the detector's
+    /// threads run it.
+    fn banded(img: &GrayView<'_>, p: &ThresholdParams, cuts: &[usize]) -> (Vec<u8>, Working) {
+        let work = working(img, p);
+        let mut out = vec![7u8; 3];
+        let rows = frame(&work, &mut out);
+        let mut at: Vec<usize> = cuts.iter().map(|&c| c.min(work.height)).collect();
+        at.extend([0, work.height]);
+        at.sort_unstable();
+        let pw = work.width + 2;
+        let mut rest = rows;
+        for b in at.windows(2) {
+            let (band, tail) = rest.split_at_mut((b[1] - b[0]) * pw);
+            let mut s = ThresholdScratch::default();
+            threshold_rows(img, p, &work, b[0]..b[1], &mut s, band);
+            rest = tail;
+        }
+        (out, work)
+    }
+
     #[test]
     fn downsample_averages_blocks() {
         let src = [0u8, 4, 8, 8, 0, 0, 8, 8, 100, 100, 200, 200];
@@ -415,6 +489,12 @@ mod tests {
                     offset: 5,
                 };
                 assert_eq!(fused(&view, &p), reference(&view, &p), "{w}x{h} r{r}");
+                let cuts = [1, h / 3, h / 2, h / 2 + 1];
+                assert_eq!(
+                    banded(&view, &p, &cuts),
+                    reference(&view, &p),
+                    "{w}x{h} r{r}"
+                );
             }
         }
     }
@@ -435,6 +515,7 @@ mod tests {
             downsample: bool,
             ramp in 0u32..4,
             seed: u64,
+            cuts in proptest::collection::vec(0usize..40, 0..4),
         ) {
             let stride = w + pad;
             let data: Vec<u8> = noise(stride * h, seed)
@@ -447,7 +528,9 @@ mod tests {
                 .collect();
             let view = GrayView::new(&data, w as u32, h as u32, stride).unwrap();
             let p = ThresholdParams { downsample, radius, offset };
-            prop_assert_eq!(fused(&view, &p), reference(&view, &p));
+            let want = reference(&view, &p);
+            prop_assert_eq!(&fused(&view, &p), &want);
+            prop_assert_eq!(&banded(&view, &p, &cuts), &want);
         }
     }
 

@@ -15,6 +15,8 @@ use coppertag::Family;
 use image::GrayImage;
 use nalgebra::{Matrix3, Vector3};
 
+pub mod wild;
+
 /// The paper's camera: 1920 x 1080, fx = fy = 2730 px.
 #[derive(Debug, Clone, Copy)]
 pub struct Camera {

@@ -59,9 +59,11 @@ pub struct DetectArgs {
     #[arg(long, requires = "mcap")]
     pub(super) allow_truncated: bool,
 
-    /// Worker threads for --mcap (default: one per core). The output is
-    /// the same for any number.
-    #[arg(long, requires = "mcap", value_parser = clap::value_parser!(u64).range(1..=256))]
+    /// Threads. With --mcap: frames detected in parallel, one per thread
+    /// (default: one per core). For images: the threads one image is
+    /// detected on (default 1; the detector's `threads` setting, stages
+    /// split across them). The output is the same for any number.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=256))]
     pub(super) threads: Option<u64>,
 
     /// No progress bar (with --mcap).
@@ -194,6 +196,11 @@ pub fn run(args: &DetectArgs) -> Result<()> {
         downsample: args.downsample,
         recover_occluded: !args.no_occlusion,
         small_tags: !args.no_small_tags,
+        // With --mcap the threads are frames in parallel, each frame on one.
+        threads: match (&args.mcap, args.threads) {
+            (None, Some(t)) => usize::try_from(t).context("--threads is too large")?,
+            _ => 1,
+        },
         ..DetectorConfig::with_builtin_families(&args.family).context("--family")?
     };
     if let Some(input) = &args.mcap {

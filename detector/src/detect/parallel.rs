@@ -1,0 +1,145 @@
+//! The detector's own worker threads ([`crate::DetectorConfig::threads`]).
+//!
+//! Why a pool of the detector's own rather than rayon's global one: the
+//! user's thread count is then what runs (the global pool has one thread
+//! per core, shared with whatever else the program does in it), and two
+//! detectors in one program do not queue behind each other.
+//!
+//! Every parallel step keeps the single-thread result bit for bit: work is
+//! split into pieces whose results do not depend on the split (bands of
+//! rows, runs of borders, candidates, regions, detections) and the
+//! pieces' results are joined in their sequential order. Where a step's
+//! sequential form depends on what earlier pieces found (candidates skipped
+//! inside a tag already read), the pieces are computed speculatively and
+//! the sequential logic is replayed over them (see
+//! `decoding::decode_candidates`). With one thread there is no pool and
+//! every stage runs its sequential code as before.
+
+use std::ops::Range;
+use std::sync::{Mutex, MutexGuard};
+
+use rayon::prelude::*;
+use rayon::ThreadPool;
+
+use crate::{Error, Result};
+
+/// Pieces per thread a list is cut into by [`Workers::map_ranges`]: more
+/// than one, so that a thread slowed by another process (or a piece
+/// heavier than the rest) leaves pieces for the others to take, few enough
+/// that joining the pieces' results costs nothing.
+const PIECES_PER_THREAD: usize = 4;
+
+/// The pool and one set of buffers per pool thread.
+#[derive(Debug)]
+pub(crate) struct Workers<S> {
+    pool: ThreadPool,
+    /// Buffers of pool thread `i` at index `i`; each is locked by its own
+    /// thread only, so the locks are never contended.
+    scratch: Vec<Mutex<S>>,
+}
+
+impl<S: Default + Send> Workers<S> {
+    /// A pool of `threads` (at least 2) threads.
+    pub(crate) fn new(threads: usize) -> Result<Self> {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .thread_name(|i| format!("coppertag-{i}"))
+            .build()
+            .map_err(|e| Error::InvalidParameter {
+                name: "threads",
+                reason: format!("{threads} threads could not be started: {e}"),
+            })?;
+        let scratch = (0..pool.current_num_threads())
+            .map(|_| Mutex::new(S::default()))
+            .collect();
+        Ok(Self { pool, scratch })
+    }
+
+    /// Threads of the pool.
+    pub(crate) fn threads(&self) -> usize {
+        self.scratch.len()
+    }
+
+    /// Runs `f` in the pool (so that rayon's parallel iterators inside it
+    /// use the pool's threads).
+    pub(crate) fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        self.pool.install(f)
+    }
+
+    /// The buffers of the current pool thread. Called from inside
+    /// [`Workers::install`]; outside the pool it returns the first set.
+    pub(crate) fn scratch(&self) -> MutexGuard<'_, S> {
+        let i = rayon::current_thread_index().unwrap_or(0) % self.scratch.len();
+        // A panic while the buffers were held leaves them in some state
+        // that every user overwrites before reading: the poison is moot.
+        self.scratch[i]
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// `0..n` cut into consecutive ranges of at least `min_len` items
+    /// (about [`PIECES_PER_THREAD`] per thread), `f` run on each in
+    /// parallel, the results in range order.
+    pub(crate) fn map_ranges<R: Send>(
+        &self,
+        n: usize,
+        min_len: usize,
+        f: impl Fn(Range<usize>) -> R + Sync,
+    ) -> Vec<R> {
+        let pieces = (self.threads() * PIECES_PER_THREAD)
+            .min(n / min_len.max(1))
+            .max(1);
+        let len = n.div_ceil(pieces).max(1);
+        self.install(|| {
+            (0..pieces)
+                .into_par_iter()
+                .map(|k| f((k * len).min(n)..((k + 1) * len).min(n)))
+                .collect()
+        })
+    }
+}
+
+/// `f(range, out)` appends the results of the items `range` of `0..n` to
+/// `out`: run on `0..n` at once without `workers`, else on pieces of at
+/// least `min_len` items in parallel ([`Workers::map_ranges`]), the
+/// pieces' results appended in order. The same `out` either way when `f`
+/// treats each item on its own.
+pub(crate) fn collect_ranges<T: Send, W: Default + Send>(
+    workers: Option<&Workers<W>>,
+    n: usize,
+    min_len: usize,
+    out: &mut Vec<T>,
+    f: impl Fn(std::ops::Range<usize>, &mut Vec<T>) + Sync,
+) {
+    match workers {
+        None => f(0..n, out),
+        Some(w) => {
+            for part in w.map_ranges(n, min_len, |r| {
+                let mut v = Vec::new();
+                f(r, &mut v);
+                v
+            }) {
+                out.extend(part);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_cover_the_list_in_order() {
+        let w = Workers::<()>::new(3).unwrap();
+        for n in [0, 1, 5, 11, 12, 13, 100, 1001] {
+            for min_len in [1, 4, 50] {
+                let r = w.map_ranges(n, min_len, |r| r);
+                assert_eq!(r.first().map(|r| r.start), Some(0), "{n} {min_len}");
+                assert_eq!(r.last().map(|r| r.end), Some(n), "{n} {min_len}");
+                assert!(r.windows(2).all(|p| p[0].end == p[1].start));
+                assert!(r.len() <= 3 * PIECES_PER_THREAD);
+            }
+        }
+    }
+}

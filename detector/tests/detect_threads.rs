@@ -1,0 +1,197 @@
+//! The multi-core mode (`DetectorConfig::threads`): any thread count finds
+//! exactly what one thread finds (the same detections, in the same order,
+//! to the bit, and the same stage counts), and absurd thread counts are a
+//! named error.
+
+mod common;
+
+use common::wild::{camera, wild_frame};
+use common::*;
+use coppertag::detect::MAX_THREADS;
+use coppertag::{DetectionStats, Detector, DetectorConfig, Error, Family};
+use image::GrayImage;
+
+/// Thread counts compared with one thread: two (the bar's machine), three
+/// (bands, batches and pieces that do not divide evenly).
+const THREADS: [usize; 2] = [2, 3];
+
+/// Every count of `s`, times left out (they differ from run to run).
+fn counts(s: &DetectionStats) -> [usize; 10] {
+    [
+        s.width as usize,
+        s.height as usize,
+        s.contours,
+        s.lines,
+        s.corners,
+        s.ellipses,
+        s.candidates,
+        s.decode_attempts,
+        s.small_regions,
+        s.detections,
+    ]
+}
+
+/// Detects on `frames` with one thread and with each of [`THREADS`]
+/// (detectors reused across frames, as a camera loop does), and checks
+/// that every result and count agrees. Returns the one-thread detector's
+/// detections and small-tag regions over the frames.
+fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (usize, usize) {
+    let make = |threads| {
+        Detector::new(DetectorConfig {
+            threads,
+            ..cfg.clone()
+        })
+        .unwrap()
+    };
+    let mut one = make(1);
+    let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t)).collect();
+    let (mut total, mut regions) = (0, 0);
+    for (i, frame) in frames.iter().enumerate() {
+        let want = one.detect(frame);
+        total += want.len();
+        regions += one.stats().small_regions;
+        for det in &mut many {
+            let got = det.detect(frame);
+            let threads = det.config().threads;
+            // Debug prints floats in their shortest exact form: equal
+            // strings are equal bits.
+            assert_eq!(
+                format!("{got:?}"),
+                format!("{want:?}"),
+                "frame {i}, {threads} threads"
+            );
+            assert_eq!(
+                counts(det.stats()),
+                counts(one.stats()),
+                "frame {i}, {threads} threads"
+            );
+        }
+    }
+    (total, regions)
+}
+
+#[test]
+fn cluttered_4k_frames_give_the_same_detections_on_any_thread_count() {
+    // Two wild-like frames at 3840 x 2160: tags of all sizes, occluded
+    // ones, clutter (thousands of borders and candidates, small-tag
+    // regions).
+    let cam = camera(2160);
+    let (frames, tags): (Vec<_>, Vec<_>) = [0x4B01, 0x4B02]
+        .iter()
+        .map(|&seed| wild_frame(seed, &cam))
+        .unzip();
+    let (found, regions) = same_on_every_thread_count(&frames, &DetectorConfig::default());
+    assert!(regions > 0);
+    let placed: usize = tags.iter().sum();
+    assert!(placed >= 4 && found * 2 >= placed, "{found} of {placed}");
+}
+
+#[test]
+fn wild_1080p_frames_give_the_same_detections_on_any_thread_count() {
+    let cam = camera(1080);
+    let frames: Vec<_> = (0..4).map(|i| wild_frame(0xC0FFEE + i, &cam).0).collect();
+    same_on_every_thread_count(&frames, &DetectorConfig::default());
+    // Without downsampling (no small-tag pass, full-size bands) and with a
+    // tight candidate cap (the decode budget runs out mid-frame).
+    let full = DetectorConfig {
+        downsample: 1,
+        ..DetectorConfig::default()
+    };
+    same_on_every_thread_count(&frames[..1], &full);
+    let capped = DetectorConfig {
+        max_candidates: 12,
+        ..DetectorConfig::default()
+    };
+    same_on_every_thread_count(&frames, &capped);
+}
+
+#[test]
+fn small_tags_give_the_same_detections_on_any_thread_count() {
+    // Eight tags with data squares of 22-40 px on one 1920 x 1080 frame:
+    // read by the full-resolution second look, one region each.
+    let mut rng = Rng::new(11);
+    let mut img = GrayImage::from_pixel(1920, 1080, image::Luma([150]));
+    for k in 0..8u64 {
+        let side = rng.range(22.0, 40.0);
+        let d = CAMERA.f * TAG_SIDE_M / side;
+        let r = rotation(
+            rng.range(-0.4, 0.4),
+            rng.range(-0.4, 0.4),
+            rng.range(0.0, 6.2),
+        );
+        let (u, v) = (
+            240.0 + 440.0 * (k % 4) as f64,
+            300.0 + 480.0 * (k / 4) as f64,
+        );
+        let t = [
+            (u - CAMERA.cx()) * d / CAMERA.f,
+            (v - CAMERA.cy()) * d / CAMERA.f,
+            d,
+        ];
+        let h = CAMERA.homography(&r, t, TAG_SIDE_M);
+        let family = if k % 3 == 2 {
+            Family::ct8()
+        } else {
+            Family::ct14()
+        };
+        Scene::new(family, 10 + k, 1920, 1080, h).paint(&mut img);
+    }
+    let img = imageproc::filter::gaussian_blur_f32(&img, 0.6);
+    let (found, regions) =
+        same_on_every_thread_count(std::slice::from_ref(&img), &DetectorConfig::default());
+    assert!(
+        found >= 6 && regions >= 6,
+        "{found} of 8 small tags, {regions} regions"
+    );
+}
+
+#[test]
+fn every_thread_count_is_validated() {
+    for threads in [MAX_THREADS + 1, usize::MAX] {
+        let cfg = DetectorConfig {
+            threads,
+            ..DetectorConfig::default()
+        };
+        match cfg.validate() {
+            Err(Error::InvalidParameter { name, .. }) => assert_eq!(name, "threads"),
+            other => panic!("{threads} threads: {other:?}"),
+        }
+        assert!(Detector::new(cfg).is_err());
+    }
+    // 0 is one thread per core; 1 and the maximum are fine.
+    for threads in [0, 1, 2, MAX_THREADS] {
+        let cfg = DetectorConfig {
+            threads,
+            ..DetectorConfig::default()
+        };
+        assert!(cfg.validate().is_ok(), "{threads}");
+    }
+    let det = Detector::new(DetectorConfig {
+        threads: 0,
+        ..DetectorConfig::default()
+    })
+    .unwrap();
+    assert_eq!(det.config().threads, 0);
+    // A config file names the field; a missing one means one thread.
+    let cfg: DetectorConfig = serde_json::from_str(r#"{"threads": 2}"#).unwrap();
+    assert_eq!(cfg.threads, 2);
+    let cfg: DetectorConfig = serde_json::from_str("{}").unwrap();
+    assert_eq!(cfg.threads, 1);
+}
+
+#[test]
+fn a_threaded_detector_can_move_between_threads() {
+    fn send_sync<T: Send + Sync + std::fmt::Debug>(_: &T) {}
+    let mut det = Detector::new(DetectorConfig {
+        threads: 2,
+        ..DetectorConfig::default()
+    })
+    .unwrap();
+    send_sync(&det);
+    assert!(format!("{det:?}").contains("threads: 2"));
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/fixtures/ct14/42.png");
+    let img = image::open(path).expect("fixture").to_luma8();
+    let found = std::thread::spawn(move || det.detect(&img)).join().unwrap();
+    assert_eq!(found.len(), 1);
+    assert_eq!(found[0].id, 42);
+}
