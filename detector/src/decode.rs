@@ -16,7 +16,7 @@ use crate::family::Family;
 use crate::geometry::{B, CORNERS};
 use crate::grid_code::{decode_cells, encode_cells, rotate_cell, GridReading};
 use crate::homography::Homography;
-use crate::likelihood::read_likely;
+use crate::likelihood::{read_likely, Codebook, LikelyFit};
 
 /// A tag read from four corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -215,20 +215,104 @@ pub fn decode_quad_with(
         return Some(reading_to_quad(r, corners, contrast, false));
     }
     // Last of all, for a blurred tag of a family with few ids: the whole
-    // grid against every codeword.
+    // grid against every codeword; when one id leads without reading
+    // clearly, the quad is aligned to that codeword and read again.
     if !blurred(&y) {
         return None;
     }
-    let r = read_likely(family.codebook()?, &y)?;
-    let misread = misread_symbols(family, &y, r.id, r.rotation)?;
+    let book = family.codebook()?;
+    let fit = read_likely(book, &y)?;
+    let (fit, y, corners) = if fit.reads() {
+        (fit, y, *corners)
+    } else if fit.promising() {
+        let aligned = align(img, n, book, &fit, corners)?;
+        let h = Homography::from_points(&CORNERS, &aligned)?;
+        let cells = sample_cells(img, n, &h)?;
+        let y: Vec<f64> = cells.iter().map(|v| (v - black) / contrast).collect();
+        let again = read_likely(book, &y)?;
+        if !again.reads() {
+            return None;
+        }
+        (again, y, aligned)
+    } else {
+        return None;
+    };
+    let misread = misread_symbols(family, &y, fit.id, fit.rotation)?;
     let reading = GridReading {
-        id: r.id,
-        rotation: r.rotation,
+        id: fit.id,
+        rotation: fit.rotation,
         corrected: misread,
         erased: 0,
         errors: misread,
     };
-    Some(reading_to_quad(reading, corners, contrast, true))
+    Some(reading_to_quad(reading, &corners, contrast, true))
+}
+
+/// First move (px) of a corner coordinate when a quad is aligned to a
+/// codeword; halved whenever no move helps, down to [`ALIGN_LAST_STEP_PX`].
+/// The quads of blurred tags the likelihood reading missed were 1-2 px off
+/// at the median.
+const ALIGN_STEP_PX: f64 = 0.5;
+/// Last move tried (px).
+const ALIGN_LAST_STEP_PX: f64 = 0.125;
+/// Farthest a corner may move (px): a quad further off is another quad.
+/// On the wild set 2.5 px let one occluded tag through with a corner
+/// 4.8 px off; 1.5 px found one tag fewer and none rough.
+const ALIGN_MAX_MOVE_PX: f64 = 1.5;
+/// Most rounds of moves (each tries every coordinate both ways).
+const ALIGN_ROUNDS: usize = 12;
+
+/// `corners` moved, one coordinate at a time, to where the cells fit the
+/// codeword of `fit` best (coordinate descent with a shrinking step: the
+/// fit's score is smooth at the scale of a fraction of a cell). `None` when
+/// the grid leaves the image.
+fn align(
+    img: &GrayView<'_>,
+    n: usize,
+    book: &Codebook,
+    fit: &LikelyFit,
+    corners: &[[f64; 2]; 4],
+) -> Option<[[f64; 2]; 4]> {
+    // One sample per cell centre: a ninth of the reading's samples, and
+    // the template is the blurred cell centres' anyway.
+    let step = 1.0 / (n as f64 + 2.0);
+    let mut cells = vec![0.0; n * n];
+    let mut fits = book.scorer(fit);
+    let mut score = |c: &[[f64; 2]; 4]| -> Option<f64> {
+        let h = Homography::from_points(&CORNERS, c)?;
+        for (k, v) in cells.iter_mut().enumerate() {
+            *v = sample_at(img, &h, cell_centre(k % n, step), cell_centre(k / n, step))?;
+        }
+        fits(&cells)
+    };
+    let mut best = *corners;
+    let mut best_score = score(&best)?;
+    let mut step = ALIGN_STEP_PX;
+    for _ in 0..ALIGN_ROUNDS {
+        let mut moved = false;
+        for k in 0..8 {
+            for sign in [-1.0, 1.0] {
+                let mut c = best;
+                c[k / 2][k % 2] += sign * step;
+                if (c[k / 2][k % 2] - corners[k / 2][k % 2]).abs() > ALIGN_MAX_MOVE_PX {
+                    continue;
+                }
+                if let Some(s) = score(&c) {
+                    if s < best_score {
+                        (best, best_score, moved) = (c, s, true);
+                        break;
+                    }
+                }
+            }
+        }
+        if !moved {
+            step /= 2.0;
+            if step < ALIGN_LAST_STEP_PX {
+                break;
+            }
+        }
+    }
+    Some(best)
 }
 
 /// Code symbols of tag `id` seen at `rotation` that the cells' whiteness
