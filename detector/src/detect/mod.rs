@@ -18,13 +18,16 @@
 //!    diagonal occlusion cases (the paper's Algorithm 2); each carries the
 //!    edge pieces its corners were seen on;
 //! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
-//!    then [`crate::decode_quad_with`] at full resolution, rival readings of
+//!    then [`crate::decode_quad_with`] at full resolution (the cells read
+//!    one by one through the Reed-Solomon code; for a blurred ct14 tag, as
+//!    a whole against every codeword: `likelihood`), rival readings of
 //!    one tag; `small`: when the image was downsampled, stages 1-6 again
 //!    at full resolution in the regions around disc rims too small to
 //!    decode at half size; then one detection per tag;
 //! 7. `verify`: the decoded tag's own model (margin, cell edges) re-fits
 //!    each detection's homography with robust weights, gives each corner
-//!    an uncertainty and drops readings the fit contradicts.
+//!    an uncertainty (growing with the edges' measured blur) and drops
+//!    readings the fit contradicts.
 //!
 //! Every threshold is either a [`DetectorConfig`] setting or a named,
 //! documented constant of its stage module; the stage parameter structs are
