@@ -84,9 +84,10 @@ pub struct GridReading {
 /// a second reading at another rotation with exactly 5 corrections (the
 /// code's limit) beside the true one with 0. So the rule here is maximum
 /// likelihood with a margin: the reading with fewest corrections wins when
-/// every reading of another id needs at least [`AMBIGUITY_MARGIN`] more
-/// corrected symbols; otherwise the grid is ambiguous and nothing is
-/// returned.
+/// every reading of another id, or of the same id at another rotation,
+/// needs at least [`AMBIGUITY_MARGIN`] more corrected symbols; otherwise
+/// the grid is ambiguous (in id, or in which corner is the tag's top-left)
+/// and nothing is returned.
 pub fn decode_cells(family: &Family, cells: &[bool], erased: &[bool]) -> Option<GridReading> {
     let readings: [Option<GridReading>; 4] =
         std::array::from_fn(|d| decode_cells_at(family, cells, erased, d));
@@ -95,10 +96,12 @@ pub fn decode_cells(family: &Family, cells: &[bool], erased: &[bool]) -> Option<
         .flatten()
         .min_by_key(|r| (r.corrected, r.rotation))
         .copied()?;
-    let contested = readings
-        .iter()
-        .flatten()
-        .any(|r| r.id != best.id && r.corrected < best.corrected + AMBIGUITY_MARGIN);
+    // Another id, or the same id at another rotation (a tag whose cells
+    // read the same turned: its corner order is unknown), nearly as good.
+    let contested = readings.iter().flatten().any(|r| {
+        (r.id, r.rotation) != (best.id, best.rotation)
+            && r.corrected < best.corrected + AMBIGUITY_MARGIN
+    });
     (!contested).then_some(best)
 }
 

@@ -13,6 +13,7 @@ use std::collections::VecDeque;
 
 use rayon::prelude::*;
 
+use super::outline::data_square_within;
 use super::parallel::Workers;
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS};
@@ -53,17 +54,36 @@ pub(crate) struct Target {
     pub max_corrected: usize,
 }
 
+/// A candidate's reading, and whether it was taken inside the candidate
+/// as the printed tag's outline ([`super::outline`]) rather than of the
+/// candidate's own quad.
+#[derive(Debug)]
+pub(crate) struct Reading {
+    det: Detection,
+    outline: bool,
+}
+
+impl Reading {
+    /// Whether this reading of a tag is better than `other`: one of the
+    /// data square's own quad over one inside an outline (its corners were
+    /// seen, not inferred from the paper's edge), then [`better`].
+    fn beats(&self, other: &Reading) -> bool {
+        !self.outline && other.outline
+            || (self.outline == other.outline && better(&self.det, &other.det))
+    }
+}
+
 /// A tag found in this frame and how many rival candidates were tried.
 #[derive(Debug)]
 pub(crate) struct Found {
-    det: Detection,
+    reading: Reading,
     rivals: usize,
 }
 
 impl Found {
     /// The tag's reading.
     pub(crate) fn detection(&self) -> &Detection {
-        &self.det
+        &self.reading.det
     }
 }
 
@@ -117,7 +137,7 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
     let mut batch_len = least;
     // The first batch is one candidate per thread.
     let mut wasted = true;
-    let mut ready: VecDeque<(usize, Option<Detection>)> = VecDeque::new();
+    let mut ready: VecDeque<(usize, Option<Reading>)> = VecDeque::new();
     let mut done = 0;
     let refused = |c: &Candidate| plainly_not_a_tag(img, c, scale, finest_grid(&p.refine));
     decode_in_order(candidates, scale, p, refused, |j, _, found| {
@@ -146,7 +166,7 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
                 }))
                 .take(left.max(1))
                 .collect();
-            let readings: Vec<Option<Detection>> = workers.install(|| {
+            let readings: Vec<Option<Reading>> = workers.install(|| {
                 picks
                     .par_iter()
                     .map(|&k| {
@@ -179,9 +199,46 @@ fn attempt(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> Option<Detection> {
+) -> Option<Reading> {
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-    read(img, cand, &q, centre, targets, &p.decode)
+    let own = read(img, cand, &q, centre, targets, &p.decode);
+    own.map(|det| Reading {
+        det,
+        outline: false,
+    })
+    .or_else(|| {
+        // The quad may be the printed tag's outline around a data square
+        // too blurred to make a quad of its own.
+        // Near the code's limit its reading must have every corner borne
+        // out by the fit of the tag's model: the square is the outline's
+        // middle half, not a quad of its own edges (on the wild set, one
+        // at ct14's limit had an occluded corner 3.7 px off).
+        let inner = data_square_within(img, &q)?;
+        read(img, cand, &inner, centre, targets, &p.decode)
+            .filter(|d| d.likelihood || outline_reading_stands(img, d, targets, p))
+            .map(|det| Reading { det, outline: true })
+    })
+}
+
+/// Whether a reading of a data square taken inside an outline stands: a
+/// margin of [`UNFIT_MARGIN`] symbols below its family's limit, or the
+/// model fit supporting all four corners.
+fn outline_reading_stands(
+    img: &GrayView<'_>,
+    d: &Detection,
+    targets: &[Target],
+    p: &DecodingParams,
+) -> bool {
+    let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
+        return false;
+    };
+    if d.corrected + UNFIT_MARGIN <= t.max_corrected {
+        return true;
+    }
+    matches!(
+        verify(img, &t.family, d.id, &d.corners, d.contrast, d.corrected, &p.decode),
+        Verdict::Fitted(v) if v.unsupported.iter().all(|&u| !u)
+    )
 }
 
 /// Centroid of a candidate's corners at full resolution.
@@ -202,7 +259,9 @@ fn plan(
     found: &[Found],
     p: &DecodingParams,
 ) -> Option<Option<usize>> {
-    let rival = found.iter().position(|f| inside(&f.det.corners, centre));
+    let rival = found
+        .iter()
+        .position(|f| inside(&f.reading.det.corners, centre));
     // A linked candidate (see `quads`) over a tag already read is
     // never its rival: on large tags the cells bridge each other and
     // make many of them.
@@ -210,8 +269,11 @@ fn plan(
         return None;
     }
     if let Some(r) = rival {
+        // A tag read inside an outline keeps its rivals: a quad of its own
+        // data square may still come.
         let f = &found[r];
-        if f.det.corrected == 0 || f.rivals >= p.max_rivals {
+        let settled = f.reading.det.corrected == 0 && !f.reading.outline;
+        if settled || f.rivals >= p.max_rivals {
             return None;
         }
     }
@@ -228,7 +290,7 @@ fn decode_in_order(
     scale: f64,
     p: &DecodingParams,
     refused: impl Fn(&Candidate) -> bool,
-    mut reading: impl FnMut(usize, [f64; 2], &[Found]) -> Option<Detection>,
+    mut reading: impl FnMut(usize, [f64; 2], &[Found]) -> Option<Reading>,
 ) -> (Vec<Found>, usize) {
     let mut found: Vec<Found> = Vec::new();
     let mut attempts = 0;
@@ -255,12 +317,16 @@ fn decode_in_order(
                 f.rivals += 1;
                 // Only a reading of the same tag competes; a different
                 // id inside a found tag is not trusted over it.
-                if b.family == f.det.family && b.id == f.det.id && better(&b, &f.det) {
-                    f.det = b;
+                let same = b.det.family == f.reading.det.family && b.det.id == f.reading.det.id;
+                if same && b.beats(&f.reading) {
+                    f.reading = b;
                 }
             }
             (Some(r), None) => found[r].rivals += 1,
-            (None, Some(b)) => found.push(Found { det: b, rivals: 0 }),
+            (None, Some(b)) => found.push(Found {
+                reading: b,
+                rivals: 0,
+            }),
             (None, None) => {}
         }
     }
@@ -351,19 +417,21 @@ fn within_limit(r: &QuadReading, limit: usize) -> bool {
 /// larger quad may still contain an earlier one: of two detections of
 /// which one contains the other's centre, the better reading stays.
 pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
-    let mut out: Vec<Detection> = Vec::with_capacity(found.len());
-    for Found { det: d, .. } in found {
-        if let Some(o) = out
+    let mut kept: Vec<Reading> = Vec::with_capacity(found.len());
+    for Found { reading: r, .. } in found {
+        let d = &r.det;
+        if let Some(o) = kept
             .iter_mut()
-            .find(|o| inside(&o.corners, d.center) || inside(&d.corners, o.center))
+            .find(|o| inside(&o.det.corners, d.center) || inside(&d.corners, o.det.center))
         {
-            if better(&d, o) {
-                *o = d;
+            if r.beats(o) {
+                *o = r;
             }
         } else {
-            out.push(d);
+            kept.push(r);
         }
     }
+    let mut out: Vec<Detection> = kept.into_iter().map(|r| r.det).collect();
     out.sort_by(|a, b| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
     out
 }

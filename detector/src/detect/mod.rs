@@ -43,6 +43,7 @@ pub(crate) mod corners;
 pub(crate) mod decoding;
 pub(crate) mod ellipses;
 pub(crate) mod lines;
+mod outline;
 mod parallel;
 pub(crate) mod quads;
 pub(crate) mod refine;
