@@ -10,7 +10,8 @@
 //! Sampled ("wild") datasets add a marker-by-marker evaluation
 //! ([`wild`]: correct, rough and missed markers, pose error through one
 //! solver, [`pose_error`]), aggregated per system with factor curves and
-//! jitter ([`wild_summary`]) into a report section ([`wild_report`]). Runs
+//! jitter ([`wild_summary`]) and the honesty of reported corner
+//! uncertainties ([`sigma`]) into a report section ([`wild_report`]). Runs
 //! can be split over machines and merged exactly ([`shard`]).
 #![deny(missing_docs)]
 
@@ -29,6 +30,7 @@ pub mod ros2;
 pub mod runlog;
 pub mod runner;
 pub mod shard;
+pub mod sigma;
 pub mod speed;
 pub mod truth;
 pub mod wild;

@@ -3,7 +3,7 @@
 //! | record | name or topic | content |
 //! |---|---|---|
 //! | metadata | `coppertag.run` | [`RunInfo`]: detector, version, parameters, dataset, machine, date |
-//! | message | `/detections` (`coppertag.Detections`, JSON) | one per image: index, image, ms, detections, error |
+//! | message | `/detections` (`coppertag.Detections`, JSON) | one per image: index, image, ms, detections (with `corner_sigma` and `likelihood` when the detector reports them), error |
 //! | message | `/detections/annotations` (`foxglove.ImageAnnotations`, JSON) | outlines and ids, drawn over the dataset's images |
 //! | metadata | `coppertag.resources` | [`RunResources`]: CPU, memory, wall time |
 //!
@@ -64,6 +64,9 @@ pub(crate) fn detections_schema() -> serde_json::Value {
                         "items": {"type": "array", "minItems": 2, "maxItems": 2, "items": {"type": "number"}}},
                     "estimated": {"type": "array", "minItems": 4, "maxItems": 4, "items": {"type": "boolean"}},
                     "corrected": {"type": ["integer", "null"]},
+                    "corner_sigma": {"type": "array", "minItems": 4, "maxItems": 4, "items": {"type": "number", "minimum": 0},
+                        "description": "one-sigma uncertainty of each corner (px, radial), when the detector estimates one; absent otherwise"},
+                    "likelihood": {"type": "boolean", "description": "read by likelihood (CopperTag's blurred-tag reading); absent means false"},
                     "pose": {"type": "object", "description": "IPPE's two solutions, better first: rotation (row-major), translation (m), reprojection_px",
                         "properties": {"best": {"type": "object"}, "alternative": {"type": "object"}}}
                 }

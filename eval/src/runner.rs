@@ -190,6 +190,8 @@ impl Session for InProcess {
                     corners: d.corners,
                     estimated: d.estimated,
                     corrected: Some(d.corrected as u64),
+                    corner_sigma: d.corner_sigma,
+                    likelihood: d.likelihood,
                 })
                 .collect(),
             error: None,

@@ -61,6 +61,20 @@ pub struct MarkerOutcome {
     pub corner_error_max_px: Option<f64>,
     /// Its corners, as reported.
     pub corners: Option<[[f64; 2]; 4]>,
+    /// Distance of each of its corners to the true one, px (corner k
+    /// against true corner k).
+    #[serde(default)]
+    pub corner_errors_px: Option<[f64; 4]>,
+    /// Its one-sigma corner uncertainties, px, when the detector reports
+    /// them ([`crate::sigma`] measures how honest they are).
+    #[serde(default)]
+    pub corner_sigma: Option<[f64; 4]>,
+    /// Which of its corners the detector says it estimated.
+    #[serde(default)]
+    pub estimated: [bool; 4],
+    /// Read by likelihood (CopperTag's blurred-tag reading).
+    #[serde(default)]
+    pub likelihood: bool,
     /// Pose error from those corners (IPPE).
     pub pose: Option<PoseError>,
     /// Drawn factor values (empty without `draws.csv`), with the measured
@@ -207,9 +221,14 @@ pub fn evaluate(
                     } else {
                         Status::Rough
                     };
-                    let mut o = outcome(*index, m, draws, Some(&dets[k].corners), status);
+                    let d = &dets[k];
+                    let mut o = outcome(*index, m, draws, Some(&d.corners), status);
                     o.corner_error_max_px = Some(err);
-                    o.pose = pose_error(&dets[k].corners, m, camera);
+                    o.corner_errors_px = Some(std::array::from_fn(|c| dist(d.corners[c], tc[c])));
+                    o.corner_sigma = d.corner_sigma;
+                    o.estimated = d.estimated;
+                    o.likelihood = d.likelihood;
+                    o.pose = pose_error(&d.corners, m, camera);
                     o
                 }
                 None => outcome(*index, m, draws, None, Status::Missed),
@@ -257,6 +276,10 @@ fn outcome(
         status,
         corner_error_max_px: None,
         corners: corners.copied(),
+        corner_errors_px: None,
+        corner_sigma: None,
+        estimated: [false; 4],
+        likelihood: false,
         pose: None,
         factors,
     }
@@ -307,6 +330,8 @@ pub(crate) mod tests {
             corners,
             estimated: [false; 4],
             corrected: None,
+            corner_sigma: None,
+            likelihood: false,
         }
     }
 

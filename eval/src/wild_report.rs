@@ -9,6 +9,7 @@ use crate::atomic::write_atomic_in_new_dir;
 use crate::error::Result;
 use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
+use crate::sigma::{SigmaCoverage, SIGMA_MULTIPLE};
 use crate::wild_summary::{FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_RATE};
 
 fn display(system: &str) -> String {
@@ -160,6 +161,21 @@ fn fp_cell(r: &crate::wild_summary::SystemRow) -> String {
     format!("{all} ({})", each.join(", "))
 }
 
+/// Corners within 2 sigma: all, then (observed / estimated); "-" for a
+/// system that reports no sigma, or for a split with no corners.
+fn sigma_cell(c: Option<&SigmaCoverage>) -> String {
+    let Some(c) = c else {
+        return "-".into();
+    };
+    let share = |t: &crate::sigma::Tally| t.share().map_or("-".into(), pct);
+    format!(
+        "{} ({} / {})",
+        share(&c.all),
+        share(&c.observed),
+        share(&c.estimated)
+    )
+}
+
 fn category_table(c: &FactorCurve, out: &mut String) {
     let mut labels: Vec<&str> = c.points.iter().map(|p| p.label.as_str()).collect();
     labels.sort();
@@ -202,6 +218,36 @@ fn category_table(c: &FactorCurve, out: &mut String) {
     out.push('\n');
 }
 
+/// The within-2-sigma figure behind each system's cell: how many
+/// detections it rests on, readings by code against readings by
+/// likelihood, and each set; empty when no system reports a sigma.
+fn sigma_sentence(w: &WildSummary) -> String {
+    let mut parts = Vec::new();
+    for r in &w.systems {
+        let Some(c) = &r.corner_sigma else { continue };
+        let share = |t: &crate::sigma::Tally| t.share().map_or("-".into(), pct);
+        let sets: Vec<String> = r
+            .corner_sigma_by_set
+            .iter()
+            .map(|(k, v)| format!("{k} {}", share(&v.all)))
+            .collect();
+        parts.push(format!(
+            "{}: {} detections with a sigma ({} corners); read by code {}, by likelihood {}; {}",
+            display(&r.system),
+            c.detections,
+            c.all.corners,
+            share(&c.code),
+            share(&c.likelihood),
+            sets.join(", ")
+        ));
+    }
+    if parts.is_empty() {
+        String::new()
+    } else {
+        format!(" {}.", parts.join(". "))
+    }
+}
+
 /// Writes the wild section's figures and CSVs into `dir` and returns its
 /// Markdown.
 pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
@@ -232,13 +278,13 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         100.0 * MIN_DETECTABLE_RATE
     );
     out.push_str(
-        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 (ms) | min. size (px) |\n\
-         |---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 (ms) | min. size (px) | corners within 2 sigma (observed / estimated) |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &w.systems {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} | {} | {} |",
             display(&r.system),
             r.markers,
             pct(r.detection_rate),
@@ -261,9 +307,18 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
             r.min_detectable_side_px
                 .map_or(format!("no bin >= {:.0}%", 100.0 * MIN_DETECTABLE_RATE), |(lo, hi)| {
                     format!("{lo:.0}-{hi:.0}")
-                })
+                }),
+            sigma_cell(r.corner_sigma.as_ref())
         );
     }
+    let _ = writeln!(
+        out,
+        "\nCorners within {SIGMA_MULTIPLE:.0} sigma: of the corners of found markers (correct or rough) whose detection \
+         reports a one-sigma corner uncertainty, the share lying within {SIGMA_MULTIPLE:.0} sigma of the true corner, then for \
+         the corners the detector observed and those it estimated; \"-\" where a system reports no uncertainty (the \
+         issue asks CopperTag for at least 90%).{}",
+        sigma_sentence(w)
+    );
     out.push_str(
         "\nPer-system figures in `wild-systems.csv`, factor bins in `wild-factors.csv`.\n\n",
     );

@@ -11,8 +11,14 @@
 //! translation (mm) likewise; and of the rotation, the RMS angle to the
 //! renders' mean rotation (the chordal L2 mean: the sum of the rotation
 //! matrices projected back onto SO(3)). The report gives the median over
-//! groups. Only the first render of a group counts towards detection, pose
-//! and factor figures, so a scene rendered K times weighs as one.
+//! groups. Only the first render of a group counts towards detection, pose,
+//! corner-sigma and factor figures, so a scene rendered K times weighs as
+//! one.
+//!
+//! Corner sigma ([`crate::sigma`]): the share of corners of found markers
+//! (correct or rough) whose detection reports a one-sigma uncertainty that
+//! lie within 2 sigma of the truth, over every tagged set of the system and
+//! per set.
 
 use std::collections::BTreeMap;
 
@@ -24,6 +30,7 @@ use crate::draws::{FactorValue, JITTER_GROUP};
 use crate::metrics::Stats;
 use crate::pose_error::{angle_between, rotation_of};
 use crate::report::SYSTEMS;
+use crate::sigma::SigmaCoverage;
 use crate::wild::{MarkerOutcome, Status, WildRun, SIDE_FACTOR};
 
 /// Fewest found renders of a scene for its jitter to be measured.
@@ -89,6 +96,16 @@ pub struct SystemRow {
     /// The smallest side-in-pixels bin with at least
     /// [`MIN_DETECTABLE_RATE`] found, as (low, high) px.
     pub min_detectable_side_px: Option<(f64, f64)>,
+    /// Corners within 2 sigma of the truth, over the counted found markers
+    /// of every tagged set whose detection reports a sigma; `None` when the
+    /// system reports none (and in summaries written before the figure
+    /// existed).
+    #[serde(default)]
+    pub corner_sigma: Option<SigmaCoverage>,
+    /// The same per tagged set, by dataset (the wild set and the jitter
+    /// set differ: the latter has no blur).
+    #[serde(default)]
+    pub corner_sigma_by_set: BTreeMap<String, SigmaCoverage>,
 }
 
 /// One bin (or category) of one factor for one system.
@@ -278,6 +295,20 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             .iter()
             .flat_map(|r| r.times_ms.iter().copied())
             .collect();
+        let corner_sigma_by_set: BTreeMap<String, SigmaCoverage> = {
+            let mut by: BTreeMap<String, SigmaCoverage> = BTreeMap::new();
+            for r in &tagged {
+                if let Some(c) = SigmaCoverage::of(counted(r)) {
+                    by.entry(r.dataset.clone()).or_default().merge(&c);
+                }
+            }
+            by
+        };
+        let corner_sigma = corner_sigma_by_set.values().fold(None, |acc, c| {
+            let mut all: SigmaCoverage = acc.unwrap_or_default();
+            all.merge(c);
+            Some(all)
+        });
         let fp_free: usize = free.iter().map(|r| r.false_positives).sum();
         let mp_free: f64 = free.iter().map(|r| r.megapixels).sum();
         let min_side = curves
@@ -340,6 +371,8 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             jitter_rotation_deg: median(&jr),
             time_ms: Stats::of(&times),
             min_detectable_side_px: min_side,
+            corner_sigma,
+            corner_sigma_by_set,
         });
     }
     WildSummary {
@@ -435,6 +468,30 @@ fn opt(v: Option<f64>, digits: usize) -> String {
     v.map_or(String::new(), |x| format!("{x:.digits$}"))
 }
 
+/// The corner-sigma columns of `wild-systems.csv`: counts, shares (empty
+/// when there is nothing to share), and the overall share per set.
+fn sigma_columns(r: &SystemRow) -> String {
+    let Some(c) = &r.corner_sigma else {
+        return ",,,,,,,\"\"".into();
+    };
+    let by_set: Vec<String> = r
+        .corner_sigma_by_set
+        .iter()
+        .filter_map(|(k, v)| Some(format!("{k}={:.6}", v.all.share()?)))
+        .collect();
+    format!(
+        "{},{},{},{},{},{},{},\"{}\"",
+        c.detections,
+        c.all.corners,
+        opt(c.all.share(), 6),
+        opt(c.observed.share(), 6),
+        opt(c.estimated.share(), 6),
+        opt(c.code.share(), 6),
+        opt(c.likelihood.share(), 6),
+        by_set.join(";")
+    )
+}
+
 impl WildSummary {
     /// `wild-systems.csv`: one row per system.
     pub fn systems_csv(&self) -> String {
@@ -444,11 +501,13 @@ impl WildSummary {
              pose_n,translation_median_mm,translation_p95_mm,translation_median_pct,translation_p95_pct,\
              rotation_median_deg,rotation_p95_deg,flipped_rate,jitter_groups,jitter_corner_px,\
              jitter_translation_mm,jitter_rotation_deg,time_median_ms,time_p95_ms,min_detectable_side_lo_px,\
-             min_detectable_side_hi_px,false_positives_per_mp_by_set\n",
+             min_detectable_side_hi_px,false_positives_per_mp_by_set,sigma_detections,sigma_corners,\
+             within_2sigma,within_2sigma_observed,within_2sigma_estimated,within_2sigma_code,\
+             within_2sigma_likelihood,within_2sigma_by_set\n",
         );
         for r in &self.systems {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{},\"{}\"\n",
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{},\"{}\",{}\n",
                 r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
                 r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
                 r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
@@ -461,7 +520,8 @@ impl WildSummary {
                     .iter()
                     .map(|(k, v)| format!("{k}={v:.6}"))
                     .collect::<Vec<_>>()
-                    .join(";")
+                    .join(";"),
+                sigma_columns(r)
             ));
         }
         s
@@ -511,6 +571,10 @@ mod tests {
             status,
             corner_error_max_px: None,
             corners: None,
+            corner_errors_px: None,
+            corner_sigma: None,
+            estimated: [false; 4],
+            likelihood: false,
             pose: None,
             factors: factors
                 .iter()
@@ -569,6 +633,79 @@ mod tests {
         let s = summarise(&[run("coppertag", vec![lone])]);
         assert_eq!(s.systems[0].jitter_groups, 0);
         assert!(s.systems[0].jitter_corner_px.is_none());
+    }
+
+    #[test]
+    fn corner_sigma_over_sets_and_none_without_sigma() {
+        let sq = [[10.0, 10.0], [10.0, 50.0], [50.0, 50.0], [50.0, 10.0]];
+        let with = |index: usize, errors: [f64; 4], factors: &[(&str, FactorValue)]| {
+            let mut o = outcome(index, Status::Correct, factors);
+            o.corners = Some(sq);
+            o.corner_errors_px = Some(errors);
+            o.corner_sigma = Some([0.5; 4]);
+            o
+        };
+        // The wild set: 3 of 4 corners within 1 px, then 4 of 4.
+        let wild = run(
+            "coppertag",
+            vec![with(0, [0.2, 0.4, 0.9, 1.5], &[]), with(1, [0.0; 4], &[])],
+        );
+        // A jitter group of two renders: only the first counts (0 of 4).
+        let group = [(JITTER_GROUP, FactorValue::Num(1.0))];
+        let mut jitter = run(
+            "coppertag",
+            vec![with(5, [2.0; 4], &group), with(6, [0.0; 4], &group)],
+        );
+        jitter.dataset = "j".into();
+        // A peer reporting no sigma: no figure, not 0%.
+        let mut peer = run("stag", vec![outcome(0, Status::Correct, &[])]);
+        peer.outcomes[0].corners = Some(sq);
+        peer.outcomes[0].corner_errors_px = Some([0.1; 4]);
+        let s = summarise(&[wild, jitter, peer]);
+        let ours = s.systems.iter().find(|r| r.system == "coppertag").unwrap();
+        let c = ours.corner_sigma.unwrap();
+        assert_eq!((c.detections, c.all.corners, c.all.within), (3, 12, 7));
+        assert_eq!(ours.corner_sigma_by_set["d"].all.within, 7);
+        assert_eq!(ours.corner_sigma_by_set["j"].all.within, 0);
+        let stag = s.systems.iter().find(|r| r.system == "stag").unwrap();
+        assert_eq!(stag.corner_sigma, None);
+        assert!(stag.corner_sigma_by_set.is_empty());
+        let csv = s.systems_csv();
+        assert!(csv
+            .lines()
+            .next()
+            .unwrap()
+            .ends_with(",within_2sigma_by_set"));
+        let row = |sys: &str| {
+            csv.lines()
+                .find(|l| l.starts_with(sys))
+                .unwrap()
+                .to_string()
+        };
+        assert!(
+            row("coppertag")
+                .ends_with(",3,12,0.583333,0.583333,,0.583333,,\"d=0.875000;j=0.000000\""),
+            "{csv}"
+        );
+        assert!(row("stag").ends_with(",,,,,,,\"\""), "{csv}");
+        // Every row has as many columns as the header (quoted cells hold
+        // no commas here).
+        let cols = |l: &str| l.split(',').count();
+        assert!(csv
+            .lines()
+            .all(|l| cols(l) == cols(csv.lines().next().unwrap())));
+    }
+
+    #[test]
+    fn a_summary_written_before_corner_sigma_still_reads() {
+        let s = summarise(&[run("coppertag", vec![outcome(0, Status::Missed, &[])])]);
+        let mut v = serde_json::to_value(&s).unwrap();
+        let row = v["systems"][0].as_object_mut().unwrap();
+        assert!(row.remove("corner_sigma").is_some());
+        assert!(row.remove("corner_sigma_by_set").is_some());
+        let back: WildSummary = serde_json::from_value(v).unwrap();
+        assert_eq!(back.systems[0].corner_sigma, None);
+        assert_eq!(back, s);
     }
 
     #[test]

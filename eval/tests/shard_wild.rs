@@ -185,11 +185,24 @@ fn wild_evaluation_and_report_section() {
     run_cli(&[], &run);
     let results = t.join("results");
     let o = eval(&[&run], &results);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
     let w: serde_json::Value =
         serde_json::from_slice(&std::fs::read(results.join("wild.json")).unwrap()).unwrap();
     let row = &w["systems"][0];
     assert_eq!(row["system"], "coppertag");
+    // Our detector reports corner sigmas, carried through the run log: the
+    // five counted markers are fitted, sharp and unoccluded, so every
+    // corner is observed and within 2 sigma; the share is printed.
+    let sigma = &row["corner_sigma"];
+    assert_eq!(sigma["detections"], 5, "{sigma}");
+    assert_eq!(sigma["all"]["corners"], 20, "{sigma}");
+    assert_eq!(sigma["all"]["within"], 20, "{sigma}");
+    assert_eq!(sigma["estimated"]["corners"], 0, "{sigma}");
+    assert!(
+        err.contains("coppertag wild corners within 2 sigma: 100.0% of 20"),
+        "{err}"
+    );
     // Jitter groups of three images: 13 images -> 5 groups, 5 markers
     // counted (the first render of each).
     assert_eq!(row["markers"], 5);
@@ -233,6 +246,15 @@ fn wild_evaluation_and_report_section() {
     let md = std::fs::read_to_string(reports.join("README.md")).unwrap();
     assert!(md.contains("## In the wild: sampled scenes"), "{md}");
     assert!(md.contains("| CopperTag | 5 | 100.0% | 0.0% | 0 |"), "{md}");
+    assert!(
+        md.contains("| min. size (px) | corners within 2 sigma (observed / estimated) |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| 100.0% (100.0% / -) |")
+            && md.contains("Corners within 2 sigma: of the corners"),
+        "{md}"
+    );
     for f in [
         "wild-defocus_px.png",
         "wild-defocus_px.svg",

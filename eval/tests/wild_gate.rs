@@ -20,6 +20,10 @@ fn outcome(index: usize, status: Status) -> MarkerOutcome {
         status,
         corner_error_max_px: None,
         corners: None,
+        corner_errors_px: None,
+        corner_sigma: None,
+        estimated: [false; 4],
+        likelihood: false,
         pose: None,
         factors: Default::default(),
     }

@@ -580,6 +580,40 @@ fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
     }
 }
 
+/// The corner-sigma calibration set (`make calibrate-sigma`) is the wild
+/// set with another seed and fewer scenes, nothing else: constants chosen
+/// on it must hold for the wild set's conditions, so a range changed in
+/// one spec and not the other fails here.
+#[test]
+fn the_calibration_spec_is_the_wild_spec_with_another_seed() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
+    let wild_path = dir.join("coppertag-wild.toml");
+    let calib_path = dir.join("calibration/coppertag-calib.toml");
+    // The settings, without comments, blank lines and the three keys
+    // that differ on purpose.
+    let settings = |path: &Path| -> Vec<String> {
+        std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'))
+            .filter(|l| {
+                !["description", "seed", "count"]
+                    .iter()
+                    .any(|k| l.starts_with(k))
+            })
+            .map(str::to_string)
+            .collect()
+    };
+    assert_eq!(settings(&calib_path), settings(&wild_path));
+    let (wild, calib) = (
+        DatasetSpec::load(&wild_path).unwrap(),
+        DatasetSpec::load(&calib_path).unwrap(),
+    );
+    assert_eq!((wild.seed, calib.seed), (2026, 7));
+    assert_eq!((wild.image_count(), calib.image_count()), (3000, 1000));
+}
+
 /// `sampled` with the event-like nuisances given a share of one half.
 fn with_events(system: &str, family: &str) -> String {
     let mut t = sampled(system, family, "").replace("count = 8", "count = 24");

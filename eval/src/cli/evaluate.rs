@@ -49,8 +49,9 @@ pub struct EvalArgs {
 
     /// Also evaluate marker by marker for the wild benchmark (rough
     /// detections, pose error, jitter, false positives per megapixel,
-    /// factor curves from draws.csv): writes wild.json, wild-systems.csv
-    /// and wild-factors.csv.
+    /// factor curves from draws.csv, and the share of corners within 2
+    /// sigma for detectors that report a corner sigma, printed too):
+    /// writes wild.json, wild-systems.csv and wild-factors.csv.
     #[arg(long)]
     pub wild: bool,
 
@@ -292,6 +293,21 @@ pub fn read_summaries(path: &Path) -> Result<Vec<Summary>> {
     Ok(f.summaries)
 }
 
+/// The honesty of each system's corner sigmas (`make calibrate-sigma`
+/// reads it here): one line per system that reports a sigma, and one per
+/// set when it ran on several.
+fn print_sigma(w: &WildSummary) {
+    for r in &w.systems {
+        let Some(c) = &r.corner_sigma else { continue };
+        eprintln!("{:>10} wild {}", r.system, c.describe());
+        if r.corner_sigma_by_set.len() > 1 {
+            for (set, c) in &r.corner_sigma_by_set {
+                eprintln!("{:>10}   {set}: {}", "", c.describe());
+            }
+        }
+    }
+}
+
 /// Runs the subcommand.
 pub fn run(args: &EvalArgs) -> Result<()> {
     if args.recording {
@@ -317,6 +333,9 @@ pub fn run(args: &EvalArgs) -> Result<()> {
         let (w, wild_errors) = evaluate_wild(&loaded, rule);
         errors.extend(wild_errors);
         write_wild(&args.output, &w)?;
+        if !args.json {
+            print_sigma(&w);
+        }
     }
     for e in &errors {
         eprintln!("error: {e}");

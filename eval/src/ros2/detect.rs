@@ -262,6 +262,8 @@ fn one_frame(
             corners: d.corners,
             estimated: d.estimated,
             corrected: Some(d.corrected as u64),
+            corner_sigma: d.corner_sigma,
+            likelihood: d.likelihood,
         })
         .collect();
     Ok(FrameResult {
