@@ -239,47 +239,11 @@ impl Codebook {
         }
     }
 
-    /// `y` blurred by blur `k` within the grid (nothing outside it).
+    /// `y` blurred by blur `k` within the grid (nothing outside it): the
+    /// rows, then the columns.
     fn blur_inside(&self, y: &[f64], k: usize) -> Vec<f64> {
-        let (n, w, r) = (self.n, &self.weights[k], REACH);
-        let along = |src: &[f64], horizontal: bool| -> Vec<f64> {
-            let mut out = vec![0.0; n * n];
-            for i in 0..n {
-                for j in 0..n {
-                    let mut s = 0.0;
-                    for (o, wo) in w.iter().enumerate() {
-                        let q = j as i64 + o as i64 - r;
-                        if (0..n as i64).contains(&q) {
-                            let q = q as usize;
-                            s += wo
-                                * if horizontal {
-                                    src[i * n + q]
-                                } else {
-                                    src[q * n + j]
-                                };
-                        }
-                    }
-                    out[i * n + j] = s;
-                }
-            }
-            out
-        };
-        let rows = along(y, true);
-        // Columns: the same with the roles of i and j swapped.
-        let mut out = vec![0.0; n * n];
-        for i in 0..n {
-            for j in 0..n {
-                let mut s = 0.0;
-                for (o, wo) in w.iter().enumerate() {
-                    let q = i as i64 + o as i64 - r;
-                    if (0..n as i64).contains(&q) {
-                        s += wo * rows[q as usize * n + j];
-                    }
-                }
-                out[i * n + j] = s;
-            }
-        }
-        out
+        let rows = blur_axis(y, self.n, &self.weights[k], false);
+        blur_axis(&rows, self.n, &self.weights[k], true)
     }
 }
 
@@ -325,6 +289,31 @@ impl LikelyFit {
 /// tag came within a factor 2 and a tenth of the tags' quads fell short of
 /// [`MIN_RATIO`] there, mostly for corners a pixel or two off.
 const PROMISING_RATIO: f64 = 2.0;
+
+/// `src` (an `n` x `n` grid, row-major) blurred along one axis (down the
+/// columns when `vertical`) by the weights `w` of the offsets
+/// `-REACH..=REACH`, cells beyond the grid counting as nothing.
+fn blur_axis(src: &[f64], n: usize, w: &[f64], vertical: bool) -> Vec<f64> {
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            let mut s = 0.0;
+            for (o, wo) in w.iter().enumerate() {
+                let shift = |x: usize| (x as i64 + o as i64 - REACH) as usize;
+                let (a, b) = if vertical {
+                    (shift(i), j)
+                } else {
+                    (i, shift(j))
+                };
+                if a < n && b < n {
+                    s += wo * src[a * n + b];
+                }
+            }
+            out[i * n + j] = s;
+        }
+    }
+    out
+}
 
 /// The least-squares fit `y = a t + c` over `k` cells from the dot product
 /// of `t` and `y` and their sums and sums of squares: `(a, c, score)` with

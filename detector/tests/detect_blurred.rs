@@ -13,27 +13,13 @@ use coppertag::{Detector, DetectorConfig, Family};
 /// One ct14 tag with a data square of about `side_px` px, tilted, in a
 /// 640 x 480 frame, blurred by `blur` px.
 fn scene(id: u64, side_px: f64, blur: f32, rng: &mut Rng) -> Scene {
-    let d = CAMERA.f * TAG_SIDE_M / side_px;
     let r = rotation(
         rng.range(-0.4, 0.4),
         rng.range(-0.4, 0.4),
         rng.range(0.0, std::f64::consts::TAU),
     );
-    let h = CAMERA.homography(&r, [0.0, 0.0, d], TAG_SIDE_M);
     let (px, py) = (rng.range(120.0, 520.0), rng.range(120.0, 360.0));
-    let shift = nalgebra::Matrix3::new(
-        1.0,
-        0.0,
-        px - CAMERA.cx(),
-        0.0,
-        1.0,
-        py - CAMERA.cy(),
-        0.0,
-        0.0,
-        1.0,
-    );
-    let h = coppertag::homography::Homography::from_matrix(shift * h.matrix());
-    let mut s = Scene::new(Family::ct14(), id, 640, 480, h);
+    let mut s = vga_scene(Family::ct14(), id, side_px, &r, px, py);
     s.blur = blur;
     s.noise = 2.0;
     s.seed = rng.next_u64();

@@ -11,32 +11,17 @@ use coppertag::{Detector, DetectorConfig, Family};
 /// One tag of `family` with a data square of about `side_px` px, tilted,
 /// somewhere in a 640 x 480 frame (the wild benchmark's VGA camera).
 fn scene(family: &'static Family, id: u64, side_px: f64, rng: &mut Rng) -> Scene {
-    let d = CAMERA.f * TAG_SIDE_M / side_px;
     let r = rotation(
         rng.range(-0.5, 0.5),
         rng.range(-0.5, 0.5),
         rng.range(0.0, std::f64::consts::TAU),
     );
-    let h = CAMERA.homography(&r, [0.0, 0.0, d], TAG_SIDE_M);
-    let (w, hh) = (640u32, 480u32);
     // Anywhere the whole tag (twice the data square) stays in the frame.
     let (px, py) = (
-        rng.range(2.0 * side_px, f64::from(w) - 2.0 * side_px),
-        rng.range(2.0 * side_px, f64::from(hh) - 2.0 * side_px),
+        rng.range(2.0 * side_px, 640.0 - 2.0 * side_px),
+        rng.range(2.0 * side_px, 480.0 - 2.0 * side_px),
     );
-    let shift = nalgebra::Matrix3::new(
-        1.0,
-        0.0,
-        px - CAMERA.cx(),
-        0.0,
-        1.0,
-        py - CAMERA.cy(),
-        0.0,
-        0.0,
-        1.0,
-    );
-    let h = coppertag::homography::Homography::from_matrix(shift * h.matrix());
-    let mut s = Scene::new(family, id, w, hh, h);
+    let mut s = vga_scene(family, id, side_px, &r, px, py);
     s.blur = 0.5;
     s.noise = 2.0;
     s.seed = rng.next_u64();

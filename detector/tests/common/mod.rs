@@ -530,3 +530,36 @@ pub fn paper_scene(family: &'static Family, id: u64, d: f64, r: &Matrix3<f64>) -
     s.noise = 2.0;
     s
 }
+
+/// A scene of tag `id` of `family` whose data square is about `side_px`
+/// px seen face-on, turned by `r`, centred at `(px, py)` of a 640 x 480
+/// frame of the paper's camera (the wild benchmark's VGA frame size).
+pub fn vga_scene(
+    family: &'static Family,
+    id: u64,
+    side_px: f64,
+    r: &Matrix3<f64>,
+    px: f64,
+    py: f64,
+) -> Scene {
+    let d = CAMERA.f * TAG_SIDE_M / side_px;
+    let h = CAMERA.homography(r, [0.0, 0.0, d], TAG_SIDE_M);
+    let shift = Matrix3::new(
+        1.0,
+        0.0,
+        px - CAMERA.cx(),
+        0.0,
+        1.0,
+        py - CAMERA.cy(),
+        0.0,
+        0.0,
+        1.0,
+    );
+    Scene::new(
+        family,
+        id,
+        640,
+        480,
+        Homography::from_matrix(shift * h.matrix()),
+    )
+}
