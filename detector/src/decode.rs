@@ -103,6 +103,19 @@ fn sample_cells(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<Vec<f64>
     Some(cells)
 }
 
+/// The cells' whiteness through `h` (row-major): 0 at the tag's measured
+/// `black`, 1 at its white, `contrast` grey levels above.
+fn whiteness(
+    img: &GrayView<'_>,
+    n: usize,
+    h: &Homography,
+    black: f64,
+    contrast: f64,
+) -> Option<Vec<f64>> {
+    let cells = sample_cells(img, n, h)?;
+    Some(cells.iter().map(|v| (v - black) / contrast).collect())
+}
+
 /// The tag's own white and black levels seen through the homography `h`
 /// of a family with `n` x `n` cells: the medians of the centre line of the
 /// one-cell white margin and of the black frame's centre line, b/2
@@ -186,14 +199,13 @@ pub fn decode_quad_with(
     if contrast < params.min_contrast {
         return None;
     }
-    let cells = sample_cells(img, n, &h)?;
-    // Cells as whiteness: 0 at the frame's black, 1 at the margin's white.
-    let y: Vec<f64> = cells.iter().map(|v| (v - black) / contrast).collect();
+    let y = whiteness(img, n, &h, black, contrast)?;
+    let is_blurred = blurred(&y);
     let reading = read_cells(family, &y, params.erase_fraction)
         .or_else(|| {
             // Third chance, for a blurred tag only: undo the blur in cell
             // space, at the assumed width that leaves the fewest grey cells.
-            if !blurred(&y) {
+            if !is_blurred {
                 return None;
             }
             let x = DEBLUR_SIGMAS
@@ -217,7 +229,7 @@ pub fn decode_quad_with(
     // Last of all, for a blurred tag of a family with few ids: the whole
     // grid against every codeword; when one id leads without reading
     // clearly, the quad is aligned to that codeword and read again.
-    if !blurred(&y) {
+    if !is_blurred {
         return None;
     }
     let book = family.codebook()?;
@@ -227,8 +239,7 @@ pub fn decode_quad_with(
     } else if fit.promising() {
         let aligned = align(img, n, book, &fit, corners)?;
         let h = Homography::from_points(&CORNERS, &aligned)?;
-        let cells = sample_cells(img, n, &h)?;
-        let y: Vec<f64> = cells.iter().map(|v| (v - black) / contrast).collect();
+        let y = whiteness(img, n, &h, black, contrast)?;
         let again = read_likely(book, &y)?;
         if !again.reads() {
             return None;

@@ -182,10 +182,9 @@ impl Codebook {
         for s in 0..SIGMAS.len() {
             for d in 0..4 {
                 for i in 0..book.ids.len() {
-                    let t = book.blur_inside(&book.seen(i, d), s);
+                    let t = book.template(i, d, s);
                     let (mut sum, mut sq) = (0.0, 0.0);
-                    for &c in &book.informative {
-                        let v = t[c] + book.outside[s][c];
+                    for v in t {
                         sum += v;
                         sq += v * v;
                     }
