@@ -17,6 +17,7 @@ use crate::geometry::{B, CORNERS};
 use crate::grid_code::{decode_cells, encode_cells, rotate_cell, GridReading};
 use crate::homography::Homography;
 use crate::likelihood::{read_likely, Codebook, LikelyFit};
+use crate::nearest::read_nearest;
 
 /// A tag read from four corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -35,12 +36,18 @@ pub struct QuadReading {
     pub rotation: usize,
     /// Contrast between the measured white and black levels (0..255).
     pub contrast: f64,
-    /// Read by likelihood: the cells were matched against every codeword
-    /// as the blur shows it, because the Reed-Solomon decoder could not
-    /// read them (a small, blurred tag; ct14 only). `corrected` then counts
-    /// the symbols a cell-by-cell reading got wrong, usually more than the
-    /// code corrects.
+    /// Read by likelihood: the cells were matched against every codeword,
+    /// because the Reed-Solomon decoder could not read them (ct14 only):
+    /// cell by cell for a tag whose hidden cells read confidently wrong
+    /// (an ink-dark or paper-white occluder over a quarter or more of it),
+    /// or as the blur shows each codeword (a small, blurred tag).
+    /// `corrected` then counts the symbols a cell-by-cell reading got
+    /// wrong, usually more than the code corrects.
     pub likelihood: bool,
+    /// Of a likelihood reading: read cell by cell, its misread cells
+    /// confined to part of the grid as under an occluder (rather than as
+    /// the blur shows each codeword).
+    pub occluded: bool,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -187,6 +194,20 @@ pub fn decode_quad_with(
     corners: &[[f64; 2]; 4],
     params: &DecodeParams,
 ) -> Option<QuadReading> {
+    decode_quad_by(img, family, corners, params, true)
+}
+
+/// [`decode_quad_with`], with the nearest-codeword reading of an occluded
+/// tag ([`crate::nearest`]) only when `nearest`: the verify stage checks a
+/// reading's fitted geometry with the readings that found it, so that a
+/// reading by the code is not confirmed by a looser one.
+pub(crate) fn decode_quad_by(
+    img: &GrayView<'_>,
+    family: &Family,
+    corners: &[[f64; 2]; 4],
+    params: &DecodeParams,
+    nearest: bool,
+) -> Option<QuadReading> {
     let h = Homography::from_points(&CORNERS, corners)?;
     let n = family.grid();
     // The cheap refusals first (a grid leaving the image, no contrast
@@ -224,18 +245,50 @@ pub fn decode_quad_with(
                 .filter(|r| r.corrected <= cap)
         });
     if let Some(r) = reading {
-        return Some(reading_to_quad(r, corners, contrast, false));
+        return Some(reading_to_quad(r, corners, contrast, Method::Code));
     }
-    // Last of all, for a blurred tag of a family with few ids: the whole
-    // grid against every codeword; when one id leads without reading
-    // clearly, the quad is aligned to that codeword and read again.
-    if !is_blurred {
+    // Then, for a family with few ids, the whole grid against every
+    // codeword: for a blurred tag, as the blur shows each codeword; last
+    // of all, cell by cell, for a tag whose hidden cells read confidently
+    // wrong (an ink-dark or paper-white occluder).
+    let book = family.codebook()?;
+    if is_blurred {
+        if let Some(r) = read_blurred(img, family, book, &y, corners, black, contrast) {
+            return Some(r);
+        }
+    }
+    if !nearest {
         return None;
     }
-    let book = family.codebook()?;
-    let fit = read_likely(book, &y)?;
+    let near = read_nearest(book, &y)?;
+    let misread = misread_symbols(family, &y, near.id, near.rotation)?;
+    let reading = GridReading {
+        id: near.id,
+        rotation: near.rotation,
+        corrected: misread,
+        erased: 0,
+        errors: misread,
+    };
+    Some(reading_to_quad(reading, corners, contrast, Method::Nearest))
+}
+
+/// The likelihood reading of a blurred tag ([`read_likely`]) whose cells'
+/// whiteness through `corners` is `y` (measured `black` level and
+/// `contrast`): when one id leads without reading clearly, the quad is
+/// aligned to that codeword ([`align`]) and read again.
+fn read_blurred(
+    img: &GrayView<'_>,
+    family: &Family,
+    book: &Codebook,
+    y: &[f64],
+    corners: &[[f64; 2]; 4],
+    black: f64,
+    contrast: f64,
+) -> Option<QuadReading> {
+    let n = family.grid();
+    let fit = read_likely(book, y)?;
     let (fit, y, corners) = if fit.reads() {
-        (fit, y, *corners)
+        (fit, y.to_vec(), *corners)
     } else if fit.promising() {
         let aligned = align(img, n, book, &fit, corners)?;
         let h = Homography::from_points(&CORNERS, &aligned)?;
@@ -256,7 +309,7 @@ pub fn decode_quad_with(
         erased: 0,
         errors: misread,
     };
-    Some(reading_to_quad(reading, &corners, contrast, true))
+    Some(reading_to_quad(reading, &corners, contrast, Method::Blur))
 }
 
 /// First move (px) of a corner coordinate when a quad is aligned to a
@@ -419,11 +472,22 @@ fn read_cells(family: &Family, x: &[f64], erase_fraction: f64) -> Option<GridRea
     })
 }
 
+/// How a grid was read.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Method {
+    /// Through the Reed-Solomon code.
+    Code,
+    /// Nearest codeword, cell by cell ([`crate::nearest`]).
+    Nearest,
+    /// Likelihood as the blur shows each codeword ([`read_likely`]).
+    Blur,
+}
+
 fn reading_to_quad(
     r: GridReading,
     corners: &[[f64; 2]; 4],
     contrast: f64,
-    likelihood: bool,
+    method: Method,
 ) -> QuadReading {
     // A clockwise quarter turn of the grid moves corner c to position c - 1
     // of the TL, BL, BR, TR list, so physical corner c was seen at c - d.
@@ -437,7 +501,8 @@ fn reading_to_quad(
         errors: r.errors,
         rotation: d,
         contrast,
-        likelihood,
+        likelihood: method != Method::Code,
+        occluded: method == Method::Nearest,
     }
 }
 

@@ -22,6 +22,7 @@ pub mod grid_code;
 pub mod homography;
 mod likelihood;
 mod math;
+mod nearest;
 pub mod pose;
 pub mod rs;
 pub mod view;

@@ -107,6 +107,10 @@ pub(crate) struct Codebook {
     /// Per blur, rotation and id: sum and sum of squares of the template
     /// over the informative cells.
     sums: Vec<(f64, f64)>,
+    /// Per rotation and id: the seen grid's black cells as a bit set of
+    /// [`Codebook::bit_words`] words (cell `c` is bit `c % 64` of word
+    /// `c / 64`), for [`crate::nearest`]'s cell-by-cell distances.
+    black_bits: Vec<u64>,
 }
 
 /// Cells per look-up group: one byte of pattern.
@@ -177,6 +181,7 @@ impl Codebook {
             weights,
             outside,
             sums: Vec::new(),
+            black_bits: Vec::new(),
         };
         let mut sums = Vec::with_capacity(SIGMAS.len() * 4 * book.ids.len());
         for s in 0..SIGMAS.len() {
@@ -193,7 +198,53 @@ impl Codebook {
             }
         }
         book.sums = sums;
+        let words = book.bit_words();
+        let mut black_bits = vec![0u64; 4 * book.ids.len() * words];
+        for d in 0..4 {
+            for i in 0..book.ids.len() {
+                let at = (d * book.ids.len() + i) * words;
+                for (c, &v) in book.seen(i, d).iter().enumerate() {
+                    if v == 0.0 {
+                        black_bits[at + c / 64] |= 1 << (c % 64);
+                    }
+                }
+            }
+        }
+        book.black_bits = black_bits;
         Some(book)
+    }
+
+    /// Grid side (cells).
+    pub(crate) fn grid(&self) -> usize {
+        self.n
+    }
+
+    /// Number of ids (codewords per rotation).
+    pub(crate) fn ids(&self) -> usize {
+        self.ids.len()
+    }
+
+    /// The id of the codeword index `i`.
+    pub(crate) fn id(&self, i: usize) -> u64 {
+        self.ids[i]
+    }
+
+    /// Informative cells (not under the centre checker), row-major.
+    pub(crate) fn informative(&self) -> &[usize] {
+        &self.informative
+    }
+
+    /// Words of 64 bits a grid's bit set takes.
+    pub(crate) fn bit_words(&self) -> usize {
+        (self.n * self.n).div_ceil(64)
+    }
+
+    /// Black cells of codeword `i` seen at `d` quarter turns, as a bit set
+    /// ([`Codebook::bit_words`] words).
+    pub(crate) fn black_bits(&self, i: usize, d: usize) -> &[u64] {
+        let words = self.bit_words();
+        let at = (d * self.ids.len() + i) * words;
+        &self.black_bits[at..at + words]
     }
 
     /// The seen grid of codeword `i` at `d` quarter turns (0 black, 1

@@ -19,8 +19,9 @@
 //!    edge pieces its corners were seen on;
 //! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
 //!    then [`crate::decode_quad_with`] at full resolution (the cells read
-//!    one by one through the Reed-Solomon code; for a blurred ct14 tag, as
-//!    a whole against every codeword: `likelihood`), rival readings of
+//!    one by one through the Reed-Solomon code; for a ct14 tag the code
+//!    cannot read, as a whole against every codeword, cell by cell or as
+//!    the blur shows it: `likelihood`), rival readings of
 //!    one tag; `small`: when the image was downsampled, stages 1-6 again
 //!    at full resolution in the regions around disc rims too small to
 //!    decode at half size; then one detection per tag;
@@ -90,12 +91,18 @@ pub struct Detection {
     /// ([`Detection::likelihood`]) it is the symbols a cell-by-cell reading
     /// got wrong, usually more than the code corrects.
     pub corrected: usize,
-    /// Read by likelihood: a blurred ct14 tag whose cells the Reed-Solomon
-    /// decoder could not read, matched against every codeword as the blur
-    /// shows it, clearly better than any other id. Such a reading is
+    /// Read by likelihood: a ct14 tag whose cells the Reed-Solomon decoder
+    /// could not read (heavily occluded or blurred), matched against every
+    /// codeword, cell by cell or as the blur shows it, clearly better than
+    /// any other id. Such a reading is
     /// reported only when the fit of the tag's model to its edges confirms
     /// its geometry (`corner_sigma` is then set).
     pub likelihood: bool,
+    /// Of a likelihood reading: read by its nearest codeword cell by cell,
+    /// as under an occluder (the verify stage judges such readings more
+    /// strictly).
+    #[serde(skip)]
+    pub(crate) occluded: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).

@@ -27,7 +27,7 @@
 //!    whose fitted geometry no longer decodes to the same id (the fit
 //!    contradicts its own cells).
 
-use crate::decode::{decode_quad_with, DecodeParams};
+use crate::decode::{decode_quad_by, DecodeParams};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
@@ -358,7 +358,10 @@ pub(crate) enum Verdict {
 
 /// Verifies the reading `id` of `family` whose corners (TL, BL, BR, TR,
 /// canonical) are `corners`, whose white-to-black contrast is `contrast`
-/// and which needed `corrected` Reed-Solomon corrections.
+/// and which needed `corrected` Reed-Solomon corrections; `occluded` when
+/// it was read by its nearest codeword ([`crate::nearest`]), the only
+/// reading that may then confirm the fitted geometry besides the others.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn verify(
     img: &GrayView<'_>,
     family: &Family,
@@ -366,6 +369,7 @@ pub(crate) fn verify(
     corners: &[[f64; 2]; 4],
     contrast: f64,
     corrected: usize,
+    occluded: bool,
     decode: &DecodeParams,
 ) -> Verdict {
     let Some(model) = Model::new(family, id) else {
@@ -389,28 +393,49 @@ pub(crate) fn verify(
     let Some(fit) = fit_model(img, &model, &h1, cell, contrast) else {
         return if shifted {
             // The shifted quad stands on the cells alone; it must read.
-            check(img, family, id, h1, decode, [false; 4], [f64::NAN; 4])
+            check(
+                img,
+                family,
+                id,
+                h1,
+                decode,
+                occluded,
+                [false; 4],
+                [f64::NAN; 4],
+            )
         } else {
             Verdict::Unfit
         };
     };
-    check(img, family, id, fit.h, decode, fit.unsupported, fit.sigma)
+    check(
+        img,
+        family,
+        id,
+        fit.h,
+        decode,
+        occluded,
+        fit.unsupported,
+        fit.sigma,
+    )
 }
 
-/// The verdict on the geometry `h`: it must still decode to `id`.
+/// The verdict on the geometry `h`: it must still decode to `id` (by its
+/// nearest codeword only for an `occluded` reading).
+#[allow(clippy::too_many_arguments)]
 fn check(
     img: &GrayView<'_>,
     family: &Family,
     id: u64,
     h: Homography,
     decode: &DecodeParams,
+    occluded: bool,
     unsupported: [bool; 4],
     sigma: [f64; 4],
 ) -> Verdict {
     let Some(corners) = map4(&h) else {
         return Verdict::Contradicted;
     };
-    match decode_quad_with(img, family, &corners, decode) {
+    match decode_quad_by(img, family, &corners, decode, occluded) {
         Some(r) if r.id == id && r.rotation % 4 == 0 => Verdict::Fitted(Verified {
             corners,
             unsupported,
