@@ -194,19 +194,53 @@ pub fn decode_quad_with(
     corners: &[[f64; 2]; 4],
     params: &DecodeParams,
 ) -> Option<QuadReading> {
-    decode_quad_by(img, family, corners, params, true)
+    decode_quad_by(img, family, corners, params, Accept::ALL)
 }
 
-/// [`decode_quad_with`], with the nearest-codeword reading of an occluded
-/// tag ([`crate::nearest`]) only when `nearest`: the verify stage checks a
-/// reading's fitted geometry with the readings that found it, so that a
-/// reading by the code is not confirmed by a looser one.
+/// Which readings a caller of [`decode_quad_by`] accepts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct Accept {
+    /// The nearest-codeword reading of an occluded tag
+    /// ([`crate::nearest`]): the verify stage checks a reading's fitted
+    /// geometry with the readings that found it, so that a reading by the
+    /// code is not confirmed by a looser one.
+    pub nearest: bool,
+    /// Most symbols a reading by the code may correct (see
+    /// [`within_limit`]); a reading over it counts as none, and the next
+    /// ways of reading the grid are tried.
+    pub limit: Option<usize>,
+}
+
+impl Accept {
+    /// Every reading, by the code at any number of corrections.
+    pub(crate) const ALL: Accept = Accept {
+        nearest: true,
+        limit: None,
+    };
+}
+
+/// Whether a reading's corrections fit a family's limit: at most `limit`
+/// symbols corrected, or, when the reading erased symbols, errors and
+/// erasures within the same share of the code's capacity with erasures at
+/// half weight (`2 * errors + erased <= 2 * limit`). Reed-Solomon spends one
+/// parity symbol on an erasure and two on an error, so a tag under a light
+/// stick, whose hidden cells read grey and are erased, is not refused for
+/// corrections the code made at half cost. The erasures themselves stay
+/// within `limit`: an erased symbol matches any id, and a reading resting
+/// on more of them than the limit says too little about the quad (on the
+/// robustness set, 13 erasures read a tag through a quad with a corner
+/// 9 px off).
+pub(crate) fn within_limit(r: &GridReading, limit: usize) -> bool {
+    r.corrected <= limit || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
+}
+
+/// [`decode_quad_with`], accepting what `accept` says.
 pub(crate) fn decode_quad_by(
     img: &GrayView<'_>,
     family: &Family,
     corners: &[[f64; 2]; 4],
     params: &DecodeParams,
-    nearest: bool,
+    accept: Accept,
 ) -> Option<QuadReading> {
     let h = Homography::from_points(&CORNERS, corners)?;
     let n = family.grid();
@@ -222,7 +256,9 @@ pub(crate) fn decode_quad_by(
     }
     let y = whiteness(img, n, &h, black, contrast)?;
     let is_blurred = blurred(&y);
+    let fits = |r: &GridReading| accept.limit.is_none_or(|l| within_limit(r, l));
     let reading = read_cells(family, &y, params.erase_fraction)
+        .filter(fits)
         .or_else(|| {
             // Third chance, for a blurred tag only: undo the blur in cell
             // space, at the assumed width that leaves the fewest grey cells.
@@ -233,7 +269,7 @@ pub(crate) fn decode_quad_by(
                 .iter()
                 .filter_map(|&sg| deblur(&y, n, sg))
                 .min_by_key(|x| mid_band(x))?;
-            read_cells(family, &x, params.erase_fraction)
+            read_cells(family, &x, params.erase_fraction).filter(fits)
         })
         .or_else(|| {
             // Last chance, for uneven light (glare, shadow, a gradient across
@@ -242,7 +278,7 @@ pub(crate) fn decode_quad_by(
             // must leave a margin of the code's capacity unused.
             let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
             read_cells(family, &locally_levelled(&y, n), params.erase_fraction)
-                .filter(|r| r.corrected <= cap)
+                .filter(|r| r.corrected <= cap && fits(r))
         });
     if let Some(r) = reading {
         return Some(reading_to_quad(r, corners, contrast, Method::Code));
@@ -257,7 +293,7 @@ pub(crate) fn decode_quad_by(
             return Some(r);
         }
     }
-    if !nearest {
+    if !accept.nearest {
         return None;
     }
     let near = read_nearest(book, &y)?;
@@ -540,6 +576,24 @@ mod tests {
         let levelled = locally_levelled(&y, fam.grid());
         let r = read_cells(fam, &levelled, 0.2).expect("read after levelling");
         assert_eq!(r.id, 77);
+    }
+
+    #[test]
+    fn erasures_count_half_within_the_limit_but_never_beyond_it() {
+        let r = |corrected, erased, errors| GridReading {
+            id: 0,
+            rotation: 0,
+            corrected,
+            erased,
+            errors,
+        };
+        assert!(within_limit(&r(9, 0, 9), 9));
+        assert!(!within_limit(&r(10, 0, 10), 9));
+        // 2 errors and 12 erasures weigh 16 <= 18 but rest on 12 erasures.
+        assert!(!within_limit(&r(14, 12, 2), 9));
+        // 4 errors and 8 erasures: 16 <= 18, 8 erasures.
+        assert!(within_limit(&r(12, 8, 4), 9));
+        assert!(!within_limit(&r(14, 8, 6), 9));
     }
 
     #[test]

@@ -20,7 +20,7 @@ use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS}
 use super::reject::plainly_not_a_tag;
 use super::verify::{verify, Verdict};
 use super::Detection;
-use crate::decode::{decode_quad_with, DecodeParams, QuadReading};
+use crate::decode::{decode_quad_by, Accept, DecodeParams};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
@@ -430,12 +430,15 @@ fn read(
         if best.as_ref().is_some_and(|b| b.corrected == 0) {
             break;
         }
-        let Some(r) = decode_quad_with(img, &t.family, q, params) else {
+        // A reading by the code over the family's limit counts as none,
+        // so that the grid's other readings are tried.
+        let accept = Accept {
+            nearest: true,
+            limit: Some(t.max_corrected),
+        };
+        let Some(r) = decode_quad_by(img, &t.family, q, params, accept) else {
             continue;
         };
-        if !within_limit(&r, t.max_corrected) {
-            continue;
-        }
         if best.as_ref().is_some_and(|b| b.corrected <= r.corrected) {
             continue;
         }
@@ -465,28 +468,11 @@ fn read(
 /// Reed-Solomon symbols a reading must leave unused below its family's
 /// limit to stand without the verify stage's model fit (a tag too small or
 /// too hidden to fit). Readings near or over the limit (the latter lean on
-/// erasures, see [`within_limit`]) are dropped unless the fit confirms
+/// erasures, see [`crate::decode::within_limit`]) are dropped unless the fit confirms
 /// their geometry: on the wild set the unconfirmed ones at 9 to 10
 /// corrections put corners 3.1, 4.5 and 14 px off, while the confirmed
 /// ones were right.
 const UNFIT_MARGIN: usize = 2;
-
-/// Whether a reading's corrections fit a family's limit: at most `limit`
-/// symbols corrected, or, when the reading erased symbols, errors and
-/// erasures within the same share of the code's capacity with erasures at
-/// half weight (`2 * errors + erased <= 2 * limit`). Reed-Solomon spends one
-/// parity symbol on an erasure and two on an error, so a tag under a light
-/// stick, whose hidden cells read grey and are erased, is not refused for
-/// corrections the code made at half cost. The erasures themselves stay
-/// within `limit`: an erased symbol matches any id, and a reading resting
-/// on more of them than the limit says too little about the quad (on the
-/// robustness set, 13 erasures read a tag through a quad with a corner
-/// 9 px off).
-fn within_limit(r: &QuadReading, limit: usize) -> bool {
-    r.likelihood
-        || r.corrected <= limit
-        || (2 * r.errors + r.erased <= 2 * limit && r.erased <= limit)
-}
 
 /// One detection per physical tag, sorted by family and id. Candidates
 /// overlapping an earlier find were skipped while decoding, but a later,

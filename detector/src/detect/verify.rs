@@ -27,7 +27,7 @@
 //!    whose fitted geometry no longer decodes to the same id (the fit
 //!    contradicts its own cells).
 
-use crate::decode::{decode_quad_by, DecodeParams};
+use crate::decode::{decode_quad_by, Accept, DecodeParams};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
@@ -435,7 +435,11 @@ fn check(
     let Some(corners) = map4(&h) else {
         return Verdict::Contradicted;
     };
-    match decode_quad_by(img, family, &corners, decode, occluded) {
+    let accept = Accept {
+        nearest: occluded,
+        limit: None,
+    };
+    match decode_quad_by(img, family, &corners, decode, accept) {
         Some(r) if r.id == id && r.rotation % 4 == 0 => Verdict::Fitted(Verified {
             corners,
             unsupported,
