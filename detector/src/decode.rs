@@ -284,14 +284,16 @@ pub(crate) fn decode_quad_by(
         return Some(reading_to_quad(r, corners, contrast, Method::Code));
     }
     // Then, for a family with few ids, the whole grid against every
-    // codeword: for a blurred tag, as the blur shows each codeword; last
-    // of all, cell by cell, for a tag whose hidden cells read confidently
-    // wrong (an ink-dark or paper-white occluder).
+    // codeword: as the blur shows each codeword (the blur model's
+    // narrowest width, under half a cell, fits a sharp tag too, and its
+    // trimmed score a tag in glare or partly hidden: tried on every grid
+    // rather than on blurred-looking ones alone, it found 0.6% more of the
+    // wild set's tags, none rough, and read none of the 16 000 quads there
+    // that were no tag); last of all, cell by cell, for a tag whose hidden
+    // cells read confidently wrong (an ink-dark or paper-white occluder).
     let book = family.codebook()?;
-    if is_blurred {
-        if let Some(r) = read_blurred(img, family, book, &y, corners, black, contrast) {
-            return Some(r);
-        }
+    if let Some(r) = read_blurred(img, family, book, &y, corners, black, contrast) {
+        return Some(r);
     }
     if !accept.nearest {
         return None;
@@ -308,7 +310,7 @@ pub(crate) fn decode_quad_by(
     Some(reading_to_quad(reading, corners, contrast, Method::Nearest))
 }
 
-/// The likelihood reading of a blurred tag ([`read_likely`]) whose cells'
+/// The likelihood reading of a tag ([`read_likely`]) whose cells'
 /// whiteness through `corners` is `y` (measured `black` level and
 /// `contrast`): when one id leads without reading clearly, the quad is
 /// aligned to that codeword ([`align`]) and read again.
