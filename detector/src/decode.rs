@@ -17,7 +17,7 @@ use crate::geometry::{B, CORNERS};
 use crate::grid_code::{decode_cells, encode_cells, rotate_cell, GridReading};
 use crate::homography::Homography;
 use crate::likelihood::{read_likely, Codebook, LikelyFit};
-use crate::nearest::read_nearest;
+use crate::nearest::{contradicts, read_nearest};
 
 /// A tag read from four corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -188,13 +188,23 @@ pub fn decode_quad<'a>(
 }
 
 /// [`decode_quad`] with explicit thresholds.
+///
+/// A reading through the Reed-Solomon code is accepted within the code's
+/// capacity (ct14: 9 symbols; an erased symbol counts half, and at most
+/// that many may be erased): a grid with more of its symbols erased reads
+/// as some id whatever it shows. Over that, the grid's other readings are
+/// tried.
 pub fn decode_quad_with(
     img: &GrayView<'_>,
     family: &Family,
     corners: &[[f64; 2]; 4],
     params: &DecodeParams,
 ) -> Option<QuadReading> {
-    decode_quad_by(img, family, corners, params, Accept::ALL)
+    let accept = Accept {
+        nearest: true,
+        limit: Some(family.code().parity() / 2),
+    };
+    decode_quad_by(img, family, corners, params, accept)
 }
 
 /// Which readings a caller of [`decode_quad_by`] accepts.
@@ -209,14 +219,6 @@ pub(crate) struct Accept {
     /// [`within_limit`]); a reading over it counts as none, and the next
     /// ways of reading the grid are tried.
     pub limit: Option<usize>,
-}
-
-impl Accept {
-    /// Every reading, by the code at any number of corrections.
-    pub(crate) const ALL: Accept = Accept {
-        nearest: true,
-        limit: None,
-    };
 }
 
 /// Whether a reading's corrections fit a family's limit: at most `limit`
@@ -339,6 +341,9 @@ fn read_blurred(
     } else {
         return None;
     };
+    if contradicts(book, &y, fit.id, fit.rotation) {
+        return None;
+    }
     let misread = misread_symbols(family, &y, fit.id, fit.rotation)?;
     let reading = GridReading {
         id: fit.id,

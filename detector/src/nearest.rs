@@ -71,10 +71,24 @@ pub(crate) struct Nearest {
     pub misread: u32,
 }
 
-/// The nearest codeword of `book` to the cells' whiteness `y` (the seen
-/// grid, row-major, 0 at the frame's black, 1 at the margin's white),
-/// when it reads by the module's three tests; `None` otherwise.
-pub(crate) fn read_nearest(book: &Codebook, y: &[f64]) -> Option<Nearest> {
+/// The nearest codeword of a grid, cell by cell, before any test.
+struct Scan {
+    /// Index of its id in the book.
+    index: usize,
+    /// Its quarter turns.
+    rotation: usize,
+    /// Confident cells that disagree with it.
+    nearest: u32,
+    /// ... and with the second nearest codeword (another id or turn).
+    second: u32,
+    /// Confident cells (bit set).
+    confident: Vec<u64>,
+    /// Confident cells that read black (bit set).
+    black: Vec<u64>,
+}
+
+/// Compares the confident cells of `y` with every codeword of `book`.
+fn scan(book: &Codebook, y: &[f64]) -> Option<Scan> {
     let n = book.grid();
     if y.len() != n * n {
         return None;
@@ -107,20 +121,33 @@ pub(crate) fn read_nearest(book: &Codebook, y: &[f64]) -> Option<Nearest> {
             }
         }
     }
-    let (d1, i, d) = best;
-    if second == u32::MAX
-        || second < d1.saturating_add(MIN_LEAD)
-        || f64::from(second) < MIN_LEAD_RATIO * f64::from(d1)
-    {
+    (second != u32::MAX).then_some(Scan {
+        index: best.1,
+        rotation: best.2,
+        nearest: best.0,
+        second,
+        confident,
+        black,
+    })
+}
+
+/// The nearest codeword of `book` to the cells' whiteness `y` (the seen
+/// grid, row-major, 0 at the frame's black, 1 at the margin's white),
+/// when it reads by the module's three tests; `None` otherwise.
+pub(crate) fn read_nearest(book: &Codebook, y: &[f64]) -> Option<Nearest> {
+    let s = scan(book, y)?;
+    let (d1, second) = (s.nearest, s.second);
+    if second < d1.saturating_add(MIN_LEAD) || f64::from(second) < MIN_LEAD_RATIO * f64::from(d1) {
         return None;
     }
     // Blocks holding a misread cell.
-    let word = book.black_bits(i, d);
+    let n = book.grid();
+    let word = book.black_bits(s.index, s.rotation);
     let side = n.div_ceil(BLOCK);
     let mut hit = vec![false; side * side];
     for &c in book.informative() {
         let bit = 1u64 << (c % 64);
-        if confident[c / 64] & bit != 0 && (word[c / 64] ^ black[c / 64]) & bit != 0 {
+        if s.confident[c / 64] & bit != 0 && (word[c / 64] ^ s.black[c / 64]) & bit != 0 {
             hit[(c / n / BLOCK) * side + (c % n) / BLOCK] = true;
         }
     }
@@ -128,11 +155,28 @@ pub(crate) fn read_nearest(book: &Codebook, y: &[f64]) -> Option<Nearest> {
     if blocks as f64 > MAX_ERROR_BLOCKS * (side * side) as f64 {
         return None;
     }
-
     Some(Nearest {
-        id: book.id(i),
-        rotation: d,
+        id: book.id(s.index),
+        rotation: s.rotation,
         misread: d1,
+    })
+}
+
+/// The nearest codeword must lead the second by this factor to veto a
+/// likelihood reading of another codeword ([`contradicts`]).
+const VETO_LEAD_RATIO: f64 = 1.2;
+
+/// Whether the cells of `y`, read cell by cell, name another codeword
+/// than `id` at `rotation` with a lead of [`VETO_LEAD_RATIO`]. The
+/// likelihood reading models blur as the same in every direction; under
+/// a motion blur of 3 to 6 px it read 5 of the wild set's tags, with their
+/// true corners, as another id. The cells' own nearest codeword named the
+/// right one in 4 of them, 2 with such a lead, and contradicted none of
+/// the right readings.
+pub(crate) fn contradicts(book: &Codebook, y: &[f64], id: u64, rotation: usize) -> bool {
+    scan(book, y).is_some_and(|s| {
+        (book.id(s.index), s.rotation) != (id, rotation)
+            && f64::from(s.second) >= VETO_LEAD_RATIO * f64::from(s.nearest.max(1))
     })
 }
 
@@ -218,6 +262,17 @@ mod tests {
                 .collect();
             assert_eq!(read_nearest(book(), &y), None);
         }
+    }
+
+    #[test]
+    fn the_cells_contradict_another_codeword_not_their_own() {
+        let y = seen(150, 1);
+        assert!(!contradicts(book(), &y, 150, 1));
+        assert!(contradicts(book(), &y, 170, 1));
+        // The same id at another turn is another codeword too.
+        assert!(contradicts(book(), &y, 150, 2));
+        // A flat grid names nothing clearly.
+        assert!(!contradicts(book(), &[0.5; 196], 170, 0));
     }
 
     #[test]
