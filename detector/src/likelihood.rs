@@ -446,20 +446,20 @@ pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
     // `<y, t>` over the informative cells for the template of the seen grid
     // `x` at blur `s`, from the blurred samples `z`: the blur is symmetric,
     // so `<y, B x + outside> = <B y, x> + <y, outside>`.
-    let blurred: Vec<(Vec<f64>, f64)> = (0..SIGMAS.len())
-        .map(|s| {
-            let z = book.blur_inside(&masked, s);
-            let outside = book
-                .informative
-                .iter()
-                .map(|&c| y[c] * book.outside[s][c])
-                .sum();
-            (z, outside)
-        })
-        .collect();
+    let blur_at = |s: usize| {
+        let z = book.blur_inside(&masked, s);
+        let outside: f64 = book
+            .informative
+            .iter()
+            .map(|&c| y[c] * book.outside[s][c])
+            .sum();
+        (z, outside)
+    };
 
-    // Round 1: every codeword at the middle blur.
-    let (z, outside) = &blurred[COARSE_SIGMA];
+    // Round 1: every codeword at the middle blur (the other blurs are
+    // computed only for a grid that passes it).
+    let coarse_blur = blur_at(COARSE_SIGMA);
+    let (z, outside) = &coarse_blur;
     let z_inf: f64 = book.informative.iter().map(|&c| z[c]).sum();
     let z_cov: f64 = 0.5 * book.covered.iter().map(|&c| z[c]).sum::<f64>();
     let ng = book.groups.len();
@@ -502,6 +502,15 @@ pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
         }
     }
     order.truncate(FINE_IDS);
+    let blurred: Vec<(Vec<f64>, f64)> = (0..SIGMAS.len())
+        .map(|s| {
+            if s == COARSE_SIGMA {
+                coarse_blur.clone()
+            } else {
+                blur_at(s)
+            }
+        })
+        .collect();
 
     // Round 2: those ids at every blur: (score, id index, blur).
     let mut fine: Vec<(f64, usize, usize)> = order
