@@ -301,15 +301,36 @@ pub(crate) fn decode_quad_by(
         return None;
     }
     let near = read_nearest(book, &y)?;
-    let misread = misread_symbols(family, &y, near.id, near.rotation)?;
+    codeword_reading(
+        family,
+        &y,
+        (near.id, near.rotation),
+        corners,
+        contrast,
+        Method::Nearest,
+    )
+}
+
+/// The reading of codeword `id` at `rotation` found by matching the whole
+/// grid (cells' whiteness `y`) against the codebook: `corrected` counts
+/// the symbols a cell-by-cell reading got wrong ([`misread_symbols`]).
+fn codeword_reading(
+    family: &Family,
+    y: &[f64],
+    (id, rotation): (u64, usize),
+    corners: &[[f64; 2]; 4],
+    contrast: f64,
+    method: Method,
+) -> Option<QuadReading> {
+    let misread = misread_symbols(family, y, id, rotation)?;
     let reading = GridReading {
-        id: near.id,
-        rotation: near.rotation,
+        id,
+        rotation,
         corrected: misread,
         erased: 0,
         errors: misread,
     };
-    Some(reading_to_quad(reading, corners, contrast, Method::Nearest))
+    Some(reading_to_quad(reading, corners, contrast, method))
 }
 
 /// The likelihood reading of a tag ([`read_likely`]) whose cells'
@@ -344,15 +365,14 @@ fn read_blurred(
     if contradicts(book, &y, fit.id, fit.rotation) {
         return None;
     }
-    let misread = misread_symbols(family, &y, fit.id, fit.rotation)?;
-    let reading = GridReading {
-        id: fit.id,
-        rotation: fit.rotation,
-        corrected: misread,
-        erased: 0,
-        errors: misread,
-    };
-    Some(reading_to_quad(reading, &corners, contrast, Method::Blur))
+    codeword_reading(
+        family,
+        &y,
+        (fit.id, fit.rotation),
+        &corners,
+        contrast,
+        Method::Blur,
+    )
 }
 
 /// First move (px) of a corner coordinate when a quad is aligned to a

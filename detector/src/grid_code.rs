@@ -162,6 +162,22 @@ pub fn decode_cells_at(
     })
 }
 
+/// The seen whiteness of tag `id` of `family` at `d` quarter turns: 0 on
+/// black cells, 1 on white ones, a half on the cells under the centre
+/// checker. For tests of the readings that take whiteness.
+#[cfg(test)]
+pub(crate) fn seen_whiteness(family: &Family, id: u64, d: usize) -> Vec<f64> {
+    let n = family.grid();
+    let black = encode_cells(family, id).unwrap();
+    let mut y = vec![0.5; n * n];
+    for (c, &b) in black.iter().enumerate() {
+        if !family.is_covered(c) {
+            y[rotate_cell(c, n, d)] = if b { 0.0 } else { 1.0 };
+        }
+    }
+    y
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

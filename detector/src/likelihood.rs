@@ -570,13 +570,7 @@ mod tests {
         noise: f64,
     ) -> Vec<f64> {
         let n = family.grid();
-        let black = encode_cells(family, id).unwrap();
-        let mut g = vec![0.5; n * n];
-        for (cell, &b) in black.iter().enumerate() {
-            if !family.is_covered(cell) {
-                g[rotate_cell(cell, n, d)] = if b { 0.0 } else { 1.0 };
-            }
-        }
+        let g = crate::grid_code::seen_whiteness(family, id, d);
         blur_grid(&g, n, sigma, REACH)
             .iter()
             .enumerate()

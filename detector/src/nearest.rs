@@ -184,21 +184,11 @@ pub(crate) fn contradicts(book: &Codebook, y: &[f64], id: u64, rotation: usize) 
 mod tests {
     use super::*;
     use crate::family::Family;
-    use crate::grid_code::{encode_cells, rotate_cell};
+    use crate::grid_code::seen_whiteness;
 
-    /// The seen whiteness of ct14 tag `id` at `d` quarter turns (the centre
-    /// checker's cells at a half).
+    /// The seen whiteness of ct14 tag `id` at `d` quarter turns.
     fn seen(id: u64, d: usize) -> Vec<f64> {
-        let fam = Family::ct14();
-        let n = fam.grid();
-        let black = encode_cells(fam, id).unwrap();
-        let mut y = vec![0.5; n * n];
-        for (c, &b) in black.iter().enumerate() {
-            if !fam.is_covered(c) {
-                y[rotate_cell(c, n, d)] = if b { 0.0 } else { 1.0 };
-            }
-        }
-        y
+        seen_whiteness(Family::ct14(), id, d)
     }
 
     fn book() -> &'static Codebook {

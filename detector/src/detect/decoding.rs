@@ -201,8 +201,9 @@ fn attempt(
     scratch: &mut RefineScratch,
 ) -> Option<Reading> {
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-    let own = read(img, cand, &q, centre, targets, &p.decode)
-        .filter(|d| !d.occluded || occluded_reading_stands(img, d, targets, p));
+    let own = read(img, cand, &q, centre, targets, &p.decode).filter(|d| {
+        !d.occluded || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+    });
     own.map(|det| Reading {
         det,
         outline: false,
@@ -218,9 +219,11 @@ fn attempt(
         read(img, cand, &inner, centre, targets, &p.decode)
             .filter(|d| {
                 if d.occluded {
-                    occluded_reading_stands(img, d, targets, p)
+                    target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
                 } else {
-                    d.likelihood || outline_reading_stands(img, d, targets, p)
+                    d.likelihood
+                        || target_of(targets, d)
+                            .is_some_and(|t| outline_reading_stands(img, d, t, p))
                 }
             })
             .map(|det| Reading { det, outline: true })
@@ -233,18 +236,34 @@ fn attempt(
 fn outline_reading_stands(
     img: &GrayView<'_>,
     d: &Detection,
-    targets: &[Target],
+    t: &Target,
     p: &DecodingParams,
 ) -> bool {
-    let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
-        return false;
-    };
     if d.corrected + UNFIT_MARGIN <= t.max_corrected {
         return true;
     }
     matches!(
-        verify(img, &t.family, d.id, &d.corners, d.contrast, d.corrected, d.occluded, &p.decode),
+        verify_reading(img, d, t, p),
         Verdict::Fitted(v) if v.unsupported.iter().all(|&u| !u)
+    )
+}
+
+/// The target whose family detection `d` was read in.
+fn target_of<'a>(targets: &'a [Target], d: &Detection) -> Option<&'a Target> {
+    targets.iter().find(|t| t.family.name() == d.family)
+}
+
+/// [`verify`] of detection `d`, a reading of target `t`'s family.
+fn verify_reading(img: &GrayView<'_>, d: &Detection, t: &Target, p: &DecodingParams) -> Verdict {
+    verify(
+        img,
+        &t.family,
+        d.id,
+        &d.corners,
+        d.contrast,
+        d.corrected,
+        d.occluded,
+        &p.decode,
     )
 }
 
@@ -258,22 +277,10 @@ fn outline_reading_stands(
 fn occluded_reading_stands(
     img: &GrayView<'_>,
     d: &Detection,
-    targets: &[Target],
+    t: &Target,
     p: &DecodingParams,
 ) -> bool {
-    let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
-        return false;
-    };
-    match verify(
-        img,
-        &t.family,
-        d.id,
-        &d.corners,
-        d.contrast,
-        d.corrected,
-        true,
-        &p.decode,
-    ) {
+    match verify_reading(img, d, t, p) {
         Verdict::Fitted(v) => {
             let hidden = std::array::from_fn(|k| d.estimated[k] || v.unsupported[k]);
             v.sigma.iter().all(|s| s.is_finite()) && occluded_geometry_stands(&v.corners, hidden)
@@ -559,19 +566,10 @@ fn verify_one(
     targets: &[Target],
     p: &DecodingParams,
 ) -> Option<Detection> {
-    let Some(t) = targets.iter().find(|t| t.family.name() == d.family) else {
+    let Some(t) = target_of(targets, &d) else {
         return Some(d);
     };
-    match verify(
-        img,
-        &t.family,
-        d.id,
-        &d.corners,
-        d.contrast,
-        d.corrected,
-        d.occluded,
-        &p.decode,
-    ) {
+    match verify_reading(img, &d, t, p) {
         Verdict::Fitted(v) => {
             let side = (0..4)
                 .map(|k| norm(sub(d.corners[(k + 1) % 4], d.corners[k])))
