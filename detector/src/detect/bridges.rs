@@ -26,7 +26,7 @@
 
 use super::corners::{Corner, CornerParams, REACH_PER_GAP};
 use super::lines::{Line, Polygons};
-use super::parallel::{collect_ranges, Workers};
+use super::parallel::{collect_ranges, join, Workers};
 use crate::math::{cross, dot, intersect, norm, sub};
 
 /// Two pieces of one edge turn by at most this (degrees): the fit of a
@@ -77,8 +77,10 @@ pub(crate) struct Links {
     by_end: Vec<u32>,
     /// Per line: its border.
     border_of: Vec<u32>,
-    /// Line pairs found (bridges, then gap corners).
+    /// Line pairs bridged.
     pairs: Vec<(u32, u32)>,
+    /// Gap corners found: incoming line, outgoing line, position.
+    gaps: Vec<(u32, u32, [f64; 2])>,
     /// Per linked component (at its root border): its longest line.
     longest: Vec<f64>,
 }
@@ -225,16 +227,16 @@ pub(crate) fn find_bridges<W: Default + Send>(
     out.border_parent.extend(0..polys.line_ranges.len() as u32);
     out.bridged.clear();
     out.bridged.resize(polys.line_ranges.len(), false);
-    let start_x = |l: &Line| l.ps[0];
-    let end_x = |l: &Line| l.pe[0];
-    for (order, key) in [
-        (&mut out.by_start, start_x as fn(&Line) -> f64),
-        (&mut out.by_end, end_x as fn(&Line) -> f64),
-    ] {
+    let sort = |order: &mut Vec<u32>, key: fn(&Line) -> f64| {
         order.clear();
         order.extend(0..n as u32);
         order.sort_by(|&i, &j| key(&lines[i as usize]).total_cmp(&key(&lines[j as usize])));
-    }
+    };
+    join(
+        workers,
+        || sort(&mut out.by_start, |l| l.ps[0]),
+        || sort(&mut out.by_end, |l| l.pe[0]),
+    );
     let mut pairs = std::mem::take(&mut out.pairs);
     pairs.clear();
     let (by_start, by_end) = (&out.by_start, &out.by_end);
@@ -312,8 +314,8 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
     }
     let lines = &polys.lines;
     let reach = REACH_PER_GAP * p.max_gap;
-    let mut pairs = std::mem::take(&mut links.pairs);
-    pairs.clear();
+    let mut gaps = std::mem::take(&mut links.gaps);
+    gaps.clear();
     // The longest line of each component, at its root.
     links.longest.clear();
     links.longest.resize(links.bridged.len(), 0.0);
@@ -337,8 +339,14 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
         let root = find(&links.border_parent, links.border_of[l]) as usize;
         length(&lines[l]) >= GAP_CORNER_MIN_SHARE * links.longest[root]
     };
+    // Where the pair's lines meet, if they make a gap corner.
+    let meeting = |a: usize, b: usize| {
+        let (ca, cb) = (links.border_of[a], links.border_of[b]);
+        let apart = ca != cb || !consecutive(polys, ca, a as u32, b as u32);
+        gap_corner(&lines[a], &lines[b], apart, p)
+    };
     let n = lines.len();
-    collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut pairs, |r, pairs| {
+    collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut gaps, |r, gaps| {
         for x in r.filter(|&x| eligible(x)) {
             let r = GAP_PER_LENGTH * length(&lines[x]) + reach;
             facing(
@@ -348,21 +356,20 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
                 x,
                 r,
                 |y, from, to| {
-                    if near_bridged(x, y) && eligible(y) {
-                        pairs.push((from as u32, to as u32));
+                    if near_bridged(x, y) && eligible(y) && long_enough(from, to) {
+                        if let Some(pos) = meeting(from, to) {
+                            gaps.push((from as u32, to as u32, pos));
+                        }
                     }
                 },
             );
         }
     });
-    pairs.retain(|&(a, b)| long_enough(a as usize, b as usize));
-    for &(a, b) in &pairs {
+    // The borders are joined in the pairs' order, after every pair was
+    // judged on the components as they were before.
+    for &(a, b, pos) in &gaps {
         let (la, lb) = (&lines[a as usize], &lines[b as usize]);
         let (ca, cb) = (links.border_of[a as usize], links.border_of[b as usize]);
-        let apart = ca != cb || !consecutive(polys, ca, a, b);
-        let Some(pos) = gap_corner(la, lb, apart, p) else {
-            continue;
-        };
         union(&mut links.border_parent, ca, cb);
         links.bridged[ca as usize] = true;
         links.bridged[cb as usize] = true;
@@ -377,7 +384,7 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
             gap: true,
         });
     }
-    links.pairs = pairs;
+    links.gaps = gaps;
 }
 
 #[cfg(test)]

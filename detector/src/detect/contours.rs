@@ -79,18 +79,37 @@ pub(crate) fn find_contours(
     if pw < 3 || ph < 3 {
         return;
     }
-    let off: [isize; 8] = std::array::from_fn(|k| DY[k] * pw as isize + DX[k]);
-    for y in 1..ph - 1 {
+    let off = offsets(pw);
+    scan(&mut InPlace(f), pw, 1..ph - 1, |l, i| {
+        start_border(l.0, pw, i, &off, min_len, max_len, out);
+    });
+}
+
+/// The padded-index offsets of the eight neighbours (see [`DX`]) in an
+/// image of row length `pw`.
+pub(super) fn offsets(pw: usize) -> [isize; 8] {
+    std::array::from_fn(|k| DY[k] * pw as isize + DX[k])
+}
+
+/// Suzuki & Abe's raster scan over the padded rows `rows` of an image of
+/// row length `pw`: calls `start(l, i)` on each pixel `i` that may start
+/// a border, in raster order, passing over runs of pixels that cannot.
+pub(super) fn scan<L: Labels>(
+    l: &mut L,
+    pw: usize,
+    rows: std::ops::Range<usize>,
+    mut start: impl FnMut(&mut L, usize),
+) {
+    for y in rows {
         let row = y * pw;
         let mut x = 1;
         while x < pw - 1 {
             // Pixels [x, end) are passed over at once, or tested one by
             // one when they hold an edge.
             let end = (x + SKIP_BLOCK).min(pw - 1);
-            let block = f[row + x - 1..].first_chunk::<{ SKIP_BLOCK + 2 }>();
-            if end < x + SKIP_BLOCK || !block.is_some_and(uniform) {
+            if end < x + SKIP_BLOCK || !l.block(row + x - 1).is_some_and(uniform) {
                 for i in row + x..row + end {
-                    start_border(f, pw, i, &off, min_len, max_len, out);
+                    start(l, i);
                 }
             }
             x = end;
@@ -119,15 +138,27 @@ fn start_border(
     let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
     if outer || hole {
         // Start direction (i2): west for outer, east for hole.
-        let from = if outer { 4 } else { 0 };
-        follow(f, pw, i, from, off, hole, min_len, max_len, out);
+        let from = if outer { WEST } else { EAST };
+        let border = Border {
+            start: i,
+            from,
+            hole,
+        };
+        follow(&mut InPlace(f), pw, border, off, min_len, max_len, out);
     }
 }
+
+/// Direction index of the east neighbour (see [`DX`]): where a hole
+/// border's search for its second pixel starts.
+pub(super) const EAST: usize = 0;
+/// Direction index of the west neighbour: where an outer border's search
+/// starts.
+pub(super) const WEST: usize = 4;
 
 /// Pixels the scan for border starts passes over at once when none of
 /// them, nor their left and right neighbours, is on an edge between
 /// background and foreground (see [`uniform`]).
-const SKIP_BLOCK: usize = 16;
+pub(super) const SKIP_BLOCK: usize = 16;
 
 /// Whether the bytes of `s` are all background (0) or all foreground
 /// (non-zero). A border starts only at a foreground pixel next to
@@ -136,23 +167,82 @@ const SKIP_BLOCK: usize = 16;
 /// from one non-zero value to another, so the test holds whenever it is
 /// made. Written as a count over the whole slice (no early exit), which
 /// the compiler vectorises.
-fn uniform(s: &[u8; SKIP_BLOCK + 2]) -> bool {
+pub(super) fn uniform(s: &[u8; SKIP_BLOCK + 2]) -> bool {
     let zeros = s.iter().fold(0u8, |n, &v| n.wrapping_add(u8::from(v == 0)));
     zeros == 0 || usize::from(zeros) == s.len()
 }
 
-#[allow(clippy::too_many_arguments)]
-fn follow(
-    f: &mut [u8],
+/// What border following reads and writes of the image: whether a pixel
+/// is foreground, and the labels of Suzuki & Abe's step 3.4. The
+/// sequential scan keeps the labels in the binary image itself
+/// ([`InPlace`]); the banded scan (`contour_bands`) reads a shared binary
+/// image and keeps its labels apart.
+pub(super) trait Labels {
+    /// Whether pixel `i` is foreground.
+    fn fg(&self, i: usize) -> bool;
+    /// The [`SKIP_BLOCK`] + 2 pixels from `i` on, if the image holds them
+    /// (zero and non-zero bytes for background and foreground).
+    fn block(&self, i: usize) -> Option<&[u8; SKIP_BLOCK + 2]>;
+    /// Step 3.4 at pixel `i` of the border: labelled as followed, and as
+    /// followed with background on its right when `east_zero`.
+    fn visit(&mut self, i: usize, east_zero: bool);
+    /// Background pixel `i` was examined by step 3.3 (around a pixel of
+    /// the border): it lies in the background region the border bounds.
+    fn swept(&mut self, i: usize);
+}
+
+/// The labels kept in the binary image itself (the values of the module
+/// documentation).
+pub(super) struct InPlace<'a>(pub &'a mut [u8]);
+
+impl Labels for InPlace<'_> {
+    #[inline(always)]
+    fn fg(&self, i: usize) -> bool {
+        self.0[i] != 0
+    }
+
+    #[inline(always)]
+    fn block(&self, i: usize) -> Option<&[u8; SKIP_BLOCK + 2]> {
+        self.0[i..].first_chunk()
+    }
+
+    #[inline(always)]
+    fn visit(&mut self, i: usize, east_zero: bool) {
+        if east_zero {
+            self.0[i] = 3;
+        } else if self.0[i] == 1 {
+            self.0[i] = 2;
+        }
+    }
+
+    #[inline(always)]
+    fn swept(&mut self, _: usize) {}
+}
+
+/// Where a border is followed from: its start pixel (padded index), the
+/// direction of step 3.1's search ([`WEST`] for an outer border, [`EAST`]
+/// for a hole border) and which kind it is.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Border {
+    pub start: usize,
+    pub from: usize,
+    pub hole: bool,
+}
+
+/// Follows `b` (Suzuki & Abe's steps 3.1 to 3.5) in the padded image of
+/// row length `pw`, labelling its pixels in `l`. Stores it in `out` (in
+/// unpadded coordinates) when it has at least `min_len` and at most
+/// `max_len` points; returns whether it was stored.
+pub(super) fn follow<L: Labels>(
+    l: &mut L,
     pw: usize,
-    start: usize,
-    from: usize,
+    b: Border,
     off: &[isize; 8],
-    hole: bool,
     min_len: usize,
     max_len: usize,
     out: &mut Contours,
-) {
+) -> bool {
+    let Border { start, from, hole } = b;
     let at = |i: usize, k: usize| (i as isize + off[k]) as usize;
     let first = out.points.len();
     let push = |out: &mut Contours, i: usize| {
@@ -162,15 +252,15 @@ fn follow(
     let mut i1 = None;
     for s in 0..8 {
         let k = (from + s) % 8;
-        if f[at(start, k)] != 0 {
+        if l.fg(at(start, k)) {
             i1 = Some((at(start, k), k));
             break;
         }
     }
     let Some((i1, _)) = i1 else {
         // Isolated pixel.
-        f[start] = 3;
-        return;
+        l.visit(start, true);
+        return false;
     };
     // 3.2
     let (mut i2, mut i3) = (i1, start);
@@ -192,20 +282,17 @@ fn follow(
         for _ in 0..8 {
             k = (k + 7) % 8;
             let n = at(i3, k);
-            if f[n] != 0 {
+            if l.fg(n) {
                 i4 = n;
                 break;
             }
-            if k == 0 {
+            l.swept(n);
+            if k == EAST {
                 east_zero = true;
             }
         }
         // 3.4
-        if east_zero {
-            f[i3] = 3;
-        } else if f[i3] == 1 {
-            f[i3] = 2;
-        }
+        l.visit(i3, east_zero);
         // 3.5
         if i4 == start && i3 == i1 {
             break;
@@ -216,18 +303,19 @@ fn follow(
     let len = out.points.len() - first;
     if !stored || len < min_len {
         out.points.truncate(first);
-        return;
+        return false;
     }
     out.list.push(Contour {
         start: first as u32,
         len: len as u32,
         hole,
     });
+    true
 }
 
 /// Direction index from pixel `a` to its 8-neighbour `b`.
 #[inline]
-fn direction(a: usize, b: usize, pw: usize) -> usize {
+pub(super) fn direction(a: usize, b: usize, pw: usize) -> usize {
     let d = b as isize - a as isize;
     let pw = pw as isize;
     match d {
@@ -302,8 +390,13 @@ mod tests {
             let outer = v == 1 && f[i - 1] == 0;
             let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
             if outer || hole {
-                let from = if outer { 4 } else { 0 };
-                follow(f, pw, i, from, &off, hole, 1, usize::MAX, out);
+                let from = if outer { WEST } else { EAST };
+                let b = Border {
+                    start: i,
+                    from,
+                    hole,
+                };
+                follow(&mut InPlace(f), pw, b, &off, 1, usize::MAX, out);
             }
         }
     }

@@ -9,8 +9,6 @@
 //! decoded, and the reading with the fewest corrections wins: the right
 //! geometry explains the visible cells best.
 
-use std::collections::VecDeque;
-
 use rayon::prelude::*;
 
 use super::outline::data_square_within;
@@ -57,7 +55,7 @@ pub(crate) struct Target {
 /// A candidate's reading, and whether it was taken inside the candidate
 /// as the printed tag's outline ([`super::outline`]) rather than of the
 /// candidate's own quad.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct Reading {
     det: Detection,
     outline: bool,
@@ -74,7 +72,7 @@ impl Reading {
 }
 
 /// A tag found in this frame and how many rival candidates were tried.
-#[derive(Debug)]
+#[derive(Debug, Clone)]
 pub(crate) struct Found {
     reading: Reading,
     rivals: usize,
@@ -100,94 +98,36 @@ pub(crate) fn decode_candidates(
     p: &DecodingParams,
     scratch: &mut RefineScratch,
 ) -> (Vec<Found>, usize) {
-    let refused = |c: &Candidate| plainly_not_a_tag(img, c, scale, finest_grid(&p.refine));
-    decode_in_order(candidates, scale, p, refused, |j, centre, _| {
-        attempt(img, &candidates[j], scale, centre, targets, p, scratch)
+    decode_in_order(candidates, scale, p, |j, centre, _| {
+        outcome(img, &candidates[j], scale, centre, targets, p, scratch)
     })
 }
 
-/// Most candidates decoded at once per worker thread by
-/// [`decode_candidates_par`] (batches start at one per thread and double
-/// while no reading is in vain): enough that a thread rarely waits for
-/// the others at the end of a batch, few enough that little is decoded in
-/// vain when a tag found early in a batch makes the later candidates over
-/// it skipped.
-const BATCH_PER_THREAD: usize = 4;
+/// What decoding a candidate came to: refused by [`plainly_not_a_tag`]
+/// before any reading, or read (perhaps to nothing; boxed, as a reading
+/// is large and most candidates read to nothing).
+#[derive(Debug)]
+pub(super) enum Outcome {
+    Refused,
+    Read(Option<Box<Reading>>),
+}
 
-/// [`decode_candidates`] on `workers`' threads, with the same result. The
-/// skip of a candidate depends on the tags found before it, so candidates
-/// are decoded speculatively in batches, in candidate order: those the
-/// tags found so far do not skip, at most [`BATCH_PER_THREAD`] per thread
-/// and no more than the attempts left. The sequential loop then runs over
-/// the batch's readings, taking a reading only where it would have decoded
-/// that candidate itself; a candidate it decodes that was not in the
-/// batch (a tag it depended on was replaced by a better reading) starts
-/// the next batch. The readings are pure functions of the image and the
-/// candidate, so which thread made one, and when, does not matter.
-pub(crate) fn decode_candidates_par<W: Default + Send>(
+/// The [`Outcome`] of candidate `cand` (centroid `centre`): a pure
+/// function of the image and the candidate.
+pub(super) fn outcome(
     img: &GrayView<'_>,
-    candidates: &[Candidate],
+    cand: &Candidate,
     scale: f64,
+    centre: [f64; 2],
     targets: &[Target],
     p: &DecodingParams,
-    workers: &Workers<W>,
-    scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
-) -> (Vec<Found>, usize) {
-    let (least, most) = (workers.threads(), BATCH_PER_THREAD * workers.threads());
-    let mut batch_len = least;
-    // The first batch is one candidate per thread.
-    let mut wasted = true;
-    let mut ready: VecDeque<(usize, Option<Reading>)> = VecDeque::new();
-    let mut done = 0;
-    let refused = |c: &Candidate| plainly_not_a_tag(img, c, scale, finest_grid(&p.refine));
-    decode_in_order(candidates, scale, p, refused, |j, _, found| {
-        done += 1;
-        while ready.front().is_some_and(|&(k, _)| k < j) {
-            ready.pop_front();
-            wasted = true;
-        }
-        if ready.front().is_none_or(|&(k, _)| k != j) {
-            // Batches grow while every reading is used and fall back to
-            // one candidate per thread after a reading in vain: a tag
-            // found makes the candidates over it skipped, and those come
-            // in runs.
-            wasted |= !ready.is_empty();
-            batch_len = if wasted {
-                least
-            } else {
-                (2 * batch_len).min(most)
-            };
-            wasted = false;
-            let left = p.max_attempts.saturating_sub(done - 1).min(batch_len);
-            let picks: Vec<usize> = std::iter::once(j)
-                .chain((j + 1..candidates.len()).filter(|&k| {
-                    let c = &candidates[k];
-                    plan(c, centre_of(c, scale), found, p).is_some() && !refused(c)
-                }))
-                .take(left.max(1))
-                .collect();
-            let readings: Vec<Option<Reading>> = workers.install(|| {
-                picks
-                    .par_iter()
-                    .map(|&k| {
-                        let c = &candidates[k];
-                        let mut w = workers.scratch();
-                        attempt(
-                            img,
-                            c,
-                            scale,
-                            centre_of(c, scale),
-                            targets,
-                            p,
-                            scratch(&mut w),
-                        )
-                    })
-                    .collect()
-            });
-            ready = picks.into_iter().zip(readings).collect();
-        }
-        ready.pop_front().and_then(|(_, d)| d)
-    })
+    scratch: &mut RefineScratch,
+) -> Outcome {
+    if plainly_not_a_tag(img, cand, scale, finest_grid(&p.refine)) {
+        Outcome::Refused
+    } else {
+        Outcome::Read(attempt(img, cand, scale, centre, targets, p, scratch).map(Box::new))
+    }
 }
 
 /// The reading of one candidate: its refined corners decoded.
@@ -324,7 +264,7 @@ fn occluded_geometry_stands(corners: &[[f64; 2]; 4], hidden: [bool; 4]) -> bool 
 }
 
 /// Centroid of a candidate's corners at full resolution.
-fn centre_of(cand: &Candidate, scale: f64) -> [f64; 2] {
+pub(super) fn centre_of(cand: &Candidate, scale: f64) -> [f64; 2] {
     let c = cand.corners.map(|q| to_full(q, scale));
     [
         (c[0][0] + c[1][0] + c[2][0] + c[3][0]) / 4.0,
@@ -335,7 +275,7 @@ fn centre_of(cand: &Candidate, scale: f64) -> [f64; 2] {
 /// Whether a candidate with centroid `centre` is decoded given the tags
 /// `found` so far: `None` when it is skipped, else the found tag it is a
 /// rival reading of, if any.
-fn plan(
+pub(super) fn plan(
     cand: &Candidate,
     centre: [f64; 2],
     found: &[Found],
@@ -363,16 +303,15 @@ fn plan(
 }
 
 /// The sequential decoding loop: each candidate in turn skipped
-/// ([`plan`]), refused by `refused` (see [`plainly_not_a_tag`]; a refused
-/// rival counts as one that did not read) or decoded, the reading of
-/// candidate `j` (centroid `centre`, the tags found so far `found`) from
-/// `reading`. Returns the tags and the number of candidates decoded.
-fn decode_in_order(
+/// ([`plan`]) or decoded, the [`Outcome`] of candidate `j` (centroid
+/// `centre`, the tags found so far `found`) from `outcome`; a refused
+/// rival counts as one that did not read. Returns the tags and the number
+/// of candidates read.
+pub(super) fn decode_in_order(
     candidates: &[Candidate],
     scale: f64,
     p: &DecodingParams,
-    refused: impl Fn(&Candidate) -> bool,
-    mut reading: impl FnMut(usize, [f64; 2], &[Found]) -> Option<Reading>,
+    mut outcome: impl FnMut(usize, [f64; 2], &[Found]) -> Outcome,
 ) -> (Vec<Found>, usize) {
     let mut found: Vec<Found> = Vec::new();
     let mut attempts = 0;
@@ -384,15 +323,17 @@ fn decode_in_order(
         let Some(rival) = plan(cand, centre, &found, p) else {
             continue;
         };
-        if refused(cand) {
-            // A refused rival counts as one that did not read.
-            if let Some(r) = rival {
-                found[r].rivals += 1;
+        let best = match outcome(j, centre, &found) {
+            Outcome::Refused => {
+                // A refused rival counts as one that did not read.
+                if let Some(r) = rival {
+                    found[r].rivals += 1;
+                }
+                continue;
             }
-            continue;
-        }
+            Outcome::Read(best) => best.map(|b| *b),
+        };
         attempts += 1;
-        let best = reading(j, centre, &found);
         match (rival, best) {
             (Some(r), Some(b)) => {
                 let f = &mut found[r];

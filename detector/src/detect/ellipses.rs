@@ -182,8 +182,8 @@ struct Conic {
 }
 
 /// Finds ellipse candidates: the arcs of each border (on `workers`'
-/// threads if given, in runs of borders, the same arcs in the same order
-/// either way), then merged.
+/// threads if given, in runs of borders of about equal points, the same
+/// arcs in the same order either way), then merged.
 pub(crate) fn find_ellipses<W: Default + Send>(
     contours: &Contours,
     polys: &Polygons,
@@ -198,7 +198,8 @@ pub(crate) fn find_ellipses<W: Default + Send>(
     match workers {
         None => arcs_of(contours, polys, 0..n, params, scratch),
         Some(w) => {
-            let parts = w.map_ranges(n, MIN_BORDERS_PER_PIECE, |r| {
+            let points = |i: usize| contours.list[i].len as usize;
+            let parts = w.map_weighted(n, points, MIN_POINTS_PER_PIECE, |r| {
                 let mut s = EllipseScratch::default();
                 arcs_of(contours, polys, r, params, &mut s);
                 s.arcs
@@ -211,9 +212,9 @@ pub(crate) fn find_ellipses<W: Default + Send>(
     merge(contours, params, scratch, out);
 }
 
-/// Fewest borders in one piece of [`find_ellipses`]' parallel work (most
-/// are too short to look at).
-const MIN_BORDERS_PER_PIECE: usize = 256;
+/// Fewest border points in one piece of [`find_ellipses`]' parallel work,
+/// which is cut by points: the long borders, few, hold most of the work.
+const MIN_POINTS_PER_PIECE: usize = 2048;
 
 /// The arcs of the borders `range`, appended to `scratch.arcs`.
 fn arcs_of(

@@ -216,8 +216,8 @@ pub(crate) fn side_line(pts: &[[i32; 2]], i: usize, j: usize, trim: usize) -> Op
 /// `min_len` long). Lines of a contour are kept in traversal order; borders
 /// are traversed with the dark side on the left, so each line is reversed
 /// to have the dark side on its right.
-/// On `workers`' threads if given, in runs of borders (the same polygons
-/// and lines either way).
+/// On `workers`' threads if given, in runs of borders of about equal
+/// points (the same polygons and lines either way).
 pub(crate) fn extract<W: Default + Send>(
     contours: &Contours,
     params: &LineParams,
@@ -233,7 +233,8 @@ pub(crate) fn extract<W: Default + Send>(
         extract_range(contours, 0..n, params, out);
         return;
     };
-    let parts = w.map_ranges(n, MIN_BORDERS_PER_PIECE, |r| {
+    let points = |i: usize| contours.list[i].len as usize;
+    let parts = w.map_weighted(n, points, MIN_POINTS_PER_PIECE, |r| {
         let mut part = Polygons::default();
         extract_range(contours, r, params, &mut part);
         part
@@ -250,10 +251,11 @@ pub(crate) fn extract<W: Default + Send>(
     }
 }
 
-/// Fewest borders in one piece of [`extract`]'s parallel work: a border
-/// takes a microsecond or so, a piece should take more than handing it to
-/// a thread.
-const MIN_BORDERS_PER_PIECE: usize = 64;
+/// Fewest border points in one piece of [`extract`]'s parallel work (a
+/// point costs some tens of nanoseconds; a piece should take more than
+/// handing it to a thread). Pieces are cut by points, not borders: the
+/// frame's longest borders hold most of its points.
+const MIN_POINTS_PER_PIECE: usize = 2048;
 
 /// [`extract`] of the borders `range`, appended to `out`.
 fn extract_range(

@@ -39,6 +39,7 @@
 
 pub(crate) mod bridges;
 mod config;
+mod contour_bands;
 pub(crate) mod contours;
 pub(crate) mod corners;
 pub(crate) mod decoding;
@@ -47,6 +48,7 @@ pub(crate) mod lines;
 mod outline;
 mod parallel;
 pub(crate) mod quads;
+mod read_ahead;
 pub(crate) mod refine;
 pub(crate) mod reject;
 pub(crate) mod small;
@@ -270,6 +272,7 @@ struct Workspace {
 struct Segmentation {
     tscratch: threshold::ThresholdScratch,
     binary: Vec<u8>,
+    bscratch: contour_bands::BandScratch,
     contours: contours::Contours,
     polys: lines::Polygons,
     links: bridges::Links,
@@ -309,14 +312,28 @@ impl Segmentation {
         };
         times.threshold += laps.lap();
         let (ww, wh) = (work.width, work.height);
-        contours::find_contours(
-            &mut self.binary,
-            ww + 2,
-            wh + 2,
-            p.min_contour_points,
-            contours::max_border_len(ww, wh),
-            &mut self.contours,
-        );
+        let (pw, ph) = (ww + 2, wh + 2);
+        let (min_len, max_len) = (p.min_contour_points, contours::max_border_len(ww, wh));
+        match workers {
+            None => contours::find_contours(
+                &mut self.binary,
+                pw,
+                ph,
+                min_len,
+                max_len,
+                &mut self.contours,
+            ),
+            Some(w) => contour_bands::find_contours(
+                &self.binary,
+                pw,
+                ph,
+                min_len,
+                max_len,
+                w,
+                &mut self.bscratch,
+                &mut self.contours,
+            ),
+        }
         times.contours += laps.lap();
         lines::extract(&self.contours, &p.lines, workers, &mut self.polys);
         times.lines += laps.lap();
@@ -347,6 +364,7 @@ impl Segmentation {
             &self.links,
             &self.ellipses,
             &p.quads,
+            workers,
             &mut self.qscratch,
             &mut self.candidates,
         );
@@ -581,7 +599,7 @@ impl Detector {
                 &p.decoding,
                 &mut ws.rscratch,
             ),
-            Some(w) => decoding::decode_candidates_par(
+            Some(w) => read_ahead::decode_candidates_par(
                 &img,
                 cands,
                 scale,

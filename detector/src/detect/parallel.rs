@@ -97,6 +97,39 @@ impl<S: Default + Send> Workers<S> {
                 .collect()
         })
     }
+
+    /// [`Workers::map_ranges`] with items of unequal cost: `0..n` cut
+    /// into consecutive ranges of at most about `1 / pieces` of the total
+    /// `weight` each (`pieces` about [`PIECES_PER_THREAD`] per thread, and
+    /// no more than leaves each `min_weight`), `f` run on each in
+    /// parallel, the results in range order. A range is closed before an
+    /// item that would take it over its share, so a heavy item gets a
+    /// range of its own; there are at most about twice `pieces` ranges.
+    pub(crate) fn map_weighted<R: Send>(
+        &self,
+        n: usize,
+        weight: impl Fn(usize) -> usize,
+        min_weight: usize,
+        f: impl Fn(Range<usize>) -> R + Sync,
+    ) -> Vec<R> {
+        let total: usize = (0..n).map(&weight).sum();
+        let pieces = (self.threads() * PIECES_PER_THREAD)
+            .min(total / min_weight.max(1))
+            .max(1);
+        let share = total.div_ceil(pieces);
+        let mut cuts = vec![0];
+        let mut acc = 0;
+        for i in 0..n {
+            let w = weight(i);
+            if acc > 0 && acc + w > share {
+                cuts.push(i);
+                acc = 0;
+            }
+            acc += w;
+        }
+        cuts.push(n);
+        self.install(|| cuts.par_windows(2).map(|c| f(c[0]..c[1])).collect())
+    }
 }
 
 /// `f(range, out)` appends the results of the items `range` of `0..n` to
@@ -125,9 +158,71 @@ pub(crate) fn collect_ranges<T: Send, W: Default + Send>(
     }
 }
 
+/// Runs `a` and `b`, at once on `workers`' threads if given.
+pub(crate) fn join<W: Default + Send>(
+    workers: Option<&Workers<W>>,
+    a: impl FnOnce() + Send,
+    b: impl FnOnce() + Send,
+) {
+    match workers {
+        None => {
+            a();
+            b();
+        }
+        Some(w) => {
+            w.install(|| rayon::join(a, b));
+        }
+    }
+}
+
+/// [`collect_ranges`] for an `f` that needs buffers of type `S`: without
+/// `workers` it runs on `0..n` at once with `scratch`, on `workers` each
+/// piece gets buffers of its own (`S::default()`, cheap next to the
+/// piece's work).
+pub(crate) fn collect_ranges_with<T: Send, S: Default, W: Default + Send>(
+    workers: Option<&Workers<W>>,
+    n: usize,
+    min_len: usize,
+    scratch: &mut S,
+    out: &mut Vec<T>,
+    f: impl Fn(Range<usize>, &mut S, &mut Vec<T>) + Sync,
+) {
+    match workers {
+        None => f(0..n, scratch, out),
+        Some(w) => {
+            for part in w.map_ranges(n, min_len, |r| {
+                let mut v = Vec::new();
+                f(r, &mut S::default(), &mut v);
+                v
+            }) {
+                out.extend(part);
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn weighted_ranges_cover_the_list_in_order() {
+        let w = Workers::<()>::new(2).unwrap();
+        let weights = [1usize, 50, 0, 0, 3, 3, 3, 100, 1, 1, 1, 1, 0];
+        for n in [0, 1, 2, 7, weights.len()] {
+            for min_weight in [1, 10, 1000] {
+                let r = w.map_weighted(n, |i| weights[i], min_weight, |r| r);
+                assert_eq!(r.first().map(|r| r.start), Some(0), "{n} {min_weight}");
+                assert_eq!(r.last().map(|r| r.end), Some(n), "{n} {min_weight}");
+                assert!(r.windows(2).all(|p| p[0].end == p[1].start));
+                assert!(r.iter().all(|r| r.start <= r.end));
+                assert!(r.len() <= 2 * 2 * PIECES_PER_THREAD + 1);
+            }
+        }
+        // The two heavy items end up in pieces of their own.
+        let r = w.map_weighted(weights.len(), |i| weights[i], 1, |r| r);
+        assert!(r.contains(&(7..8)), "{r:?}");
+    }
 
     #[test]
     fn ranges_cover_the_list_in_order() {

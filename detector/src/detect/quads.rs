@@ -34,9 +34,12 @@
 //! the candidates over one tag, the reading with the fewest corrections
 //! wins.
 
+use std::ops::Range;
+
 use super::bridges::Links;
 use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
+use super::parallel::{collect_ranges, collect_ranges_with, Workers};
 use crate::math::{cross, dot, intersect, norm, sub, unit};
 
 /// A candidate quad in working-image coordinates, corners anticlockwise on
@@ -156,11 +159,23 @@ const MIN_LINKED_REAL: usize = 2;
 /// a rotation, are one.
 const DUPLICATE_TOL: f64 = 1.5;
 
+/// Fewest ellipses in one piece of the parallel search around ellipses
+/// (each looks at every corner of the frame).
+const MIN_ELLIPSES_PER_PIECE: usize = 4;
+
+/// Fewest candidates in one piece of the parallel Replace-Fake-Corners
+/// step (each estimated corner looks at every corner of the frame).
+const MIN_CANDIDATES_PER_PIECE: usize = 16;
+
 /// Reusable buffers.
 #[derive(Debug, Default)]
 pub(crate) struct QuadScratch {
     group: Vec<u32>,
     linked: Vec<u32>,
+    /// The runs of `linked` searched as one group each.
+    runs: Vec<Range<usize>>,
+    /// The candidates Replace-Fake-Corners adds.
+    replaced: Vec<Candidate>,
     succ: Vec<[u32; MAX_SUCCESSORS]>,
     nsucc: Vec<u8>,
 }
@@ -382,13 +397,20 @@ fn faces(c: &Corner, o: [f64; 2]) -> bool {
     cross(c.dout, w) < 0.0 && cross(w, [-c.din[0], -c.din[1]]) < 0.0
 }
 
-/// Runs the whole search: per border, then per ellipse.
-pub(crate) fn find_candidates(
+/// Runs the whole search: per border, then per ellipse, then across
+/// linked borders. The searches around ellipses and across linked borders
+/// and the Replace-Fake-Corners step run on `workers`' threads if given,
+/// in pieces whose candidates are joined in order and cut at the cap: the
+/// same candidates either way, since a candidate is added only while the
+/// list has room, so the capped list is the start of the uncapped one.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn find_candidates<W: Default + Send>(
     all_corners: &[Corner],
     plain: usize,
     links: &Links,
     ellipses: &[Ellipse],
     p: &QuadParams,
+    workers: Option<&Workers<W>>,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
 ) {
@@ -413,60 +435,40 @@ pub(crate) fn find_candidates(
         i = j;
     }
     // Around each ellipse.
-    for e in ellipses {
-        let o = e.anchor;
-        let mut group = std::mem::take(&mut s.group);
-        group.clear();
-        let reach = ELLIPSE_REACH * e.a;
-        for (ci, c) in corners.iter().enumerate() {
-            let d = norm(sub(c.pos, e.centre));
-            if d < reach && d > ELLIPSE_HOLE * e.b && faces(c, o) {
-                group.push(ci as u32);
-            }
+    let n = ellipses.len();
+    collect_ranges_with(workers, n, MIN_ELLIPSES_PER_PIECE, s, out, |r, s, out| {
+        for e in &ellipses[r] {
+            search_ellipse(corners, e, p, s, out);
         }
-        if group.len() >= MIN_ELLIPSE_CORNERS {
-            search_group(corners, &group, Some(o), None, p, s, out);
-        }
-        s.group = group;
-    }
+    });
+    out.truncate(p.max_candidates);
     // Replace-Fake-Corners (the paper's Algorithm 2, line 18): an estimated
     // corner with a detected corner close by whose lines run along the
     // quad's two sides there becomes that real corner. The detected corner
     // may itself be false (where an occluder's edge crosses the tag's), so
     // the replacement is a new candidate and the original stays; the
     // decoder keeps whichever reads with fewer corrections.
-    let n = out.len();
-    for i in 0..n {
-        let mut cand = out[i];
-        let mut replaced = false;
-        for k in 0..4 {
-            if !cand.estimated[k] {
-                continue;
+    let mut replaced = std::mem::take(&mut s.replaced);
+    replaced.clear();
+    let (found, n) = (&out[..], out.len());
+    collect_ranges(
+        workers,
+        n,
+        MIN_CANDIDATES_PER_PIECE,
+        &mut replaced,
+        |r, more| {
+            for cand in &found[r] {
+                if n + more.len() >= p.max_candidates {
+                    break;
+                }
+                more.extend(with_real_corners(cand, corners, p));
             }
-            let q = cand.corners;
-            let din = unit(sub(q[k], q[(k + 3) % 4]));
-            let dout = unit(sub(q[(k + 1) % 4], q[k]));
-            let best = corners
-                .iter()
-                .filter(|c| {
-                    norm(sub(c.pos, q[k])) < p.replace_dist
-                        && dot(c.din, din) > p.cos_edge
-                        && dot(c.dout, dout) > p.cos_edge
-                })
-                .min_by(|a, b| norm(sub(a.pos, q[k])).total_cmp(&norm(sub(b.pos, q[k]))));
-            if let Some(c) = best {
-                cand.corners[k] = c.pos;
-                cand.estimated[k] = false;
-                cand.edges[k] = Some(Edges::of(c));
-                cand.real += 1;
-                replaced = true;
-            }
-        }
-        if replaced && out.len() < p.max_candidates {
-            out.push(cand);
-        }
-    }
-    search_linked(all_corners, links, p, s, out);
+        },
+    );
+    out.extend_from_slice(&replaced);
+    out.truncate(p.max_candidates);
+    s.replaced = replaced;
+    search_linked(all_corners, links, p, workers, s, out);
     // Quads found on a border alone get the tag centre of a checker disc
     // that sits where their diagonals cross: refinement uses it to place
     // hidden corners.
@@ -505,6 +507,63 @@ pub(crate) fn find_candidates(
     out.truncate(kept);
 }
 
+/// The search around ellipse `e`: the corners near its rim whose inside
+/// faces its anchor, searched as one group.
+fn search_ellipse(
+    corners: &[Corner],
+    e: &Ellipse,
+    p: &QuadParams,
+    s: &mut QuadScratch,
+    out: &mut Vec<Candidate>,
+) {
+    let o = e.anchor;
+    let mut group = std::mem::take(&mut s.group);
+    group.clear();
+    let reach = ELLIPSE_REACH * e.a;
+    for (ci, c) in corners.iter().enumerate() {
+        let d = norm(sub(c.pos, e.centre));
+        if d < reach && d > ELLIPSE_HOLE * e.b && faces(c, o) {
+            group.push(ci as u32);
+        }
+    }
+    if group.len() >= MIN_ELLIPSE_CORNERS {
+        search_group(corners, &group, Some(o), None, p, s, out);
+    }
+    s.group = group;
+}
+
+/// `cand` with each estimated corner replaced by the nearest detected
+/// corner within [`QuadParams::replace_dist`] whose lines run along the
+/// quad's two sides there; `None` if no corner was replaced.
+fn with_real_corners(cand: &Candidate, corners: &[Corner], p: &QuadParams) -> Option<Candidate> {
+    let mut cand = *cand;
+    let mut replaced = false;
+    for k in 0..4 {
+        if !cand.estimated[k] {
+            continue;
+        }
+        let q = cand.corners;
+        let din = unit(sub(q[k], q[(k + 3) % 4]));
+        let dout = unit(sub(q[(k + 1) % 4], q[k]));
+        let best = corners
+            .iter()
+            .filter(|c| {
+                norm(sub(c.pos, q[k])) < p.replace_dist
+                    && dot(c.din, din) > p.cos_edge
+                    && dot(c.dout, dout) > p.cos_edge
+            })
+            .min_by(|a, b| norm(sub(a.pos, q[k])).total_cmp(&norm(sub(b.pos, q[k]))));
+        if let Some(c) = best {
+            cand.corners[k] = c.pos;
+            cand.estimated[k] = false;
+            cand.edges[k] = Some(Edges::of(c));
+            cand.real += 1;
+            replaced = true;
+        }
+    }
+    replaced.then_some(cand)
+}
+
 /// Whether a path of corners crosses borders only along bridges: it
 /// visits at least two borders, and each step from one border to another
 /// runs along one chain of bridged line pieces (the outgoing line of the
@@ -526,10 +585,11 @@ fn bridged_path<'a>(path: impl Iterator<Item = &'a Corner> + Clone, links: &Link
 /// or more borders joined by bridges) searched as one group, for quads
 /// across those borders (see [`bridged_path`]). It runs last, so its
 /// candidates never take the place of the other passes' under the cap.
-fn search_linked(
+fn search_linked<W: Default + Send>(
     corners: &[Corner],
     links: &Links,
     p: &QuadParams,
+    workers: Option<&Workers<W>>,
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
 ) {
@@ -542,14 +602,24 @@ fn search_linked(
         (0..corners.len() as u32).filter(|&i| links.is_bridged(corners[i as usize].contour)),
     );
     linked.sort_by_key(|&i| (links.component(corners[i as usize].contour), i));
-    let first = out.len();
+    let mut runs = std::mem::take(&mut s.runs);
+    runs.clear();
+    let mut at = 0;
     for run in linked.chunk_by(|&i, &j| {
         links.component(corners[i as usize].contour) == links.component(corners[j as usize].contour)
     }) {
         if run.len() >= MIN_BORDER_CORNERS {
-            search_group(corners, run, None, Some(links), p, s, out);
+            runs.push(at..at + run.len());
         }
+        at += run.len();
     }
+    let first = out.len();
+    collect_ranges_with(workers, runs.len(), 1, s, out, |r, s, out| {
+        for run in &runs[r] {
+            search_group(corners, &linked[run.clone()], None, Some(links), p, s, out);
+        }
+    });
+    out.truncate(p.max_candidates);
     let mut kept = first;
     for i in first..out.len() {
         if out[i].real >= MIN_LINKED_REAL {
@@ -560,6 +630,7 @@ fn search_linked(
     }
     out.truncate(kept);
     s.linked = linked;
+    s.runs = runs;
 }
 
 fn same_quad(a: &[[f64; 2]; 4], b: &[[f64; 2]; 4], tol: f64) -> bool {
@@ -636,6 +707,7 @@ mod tests {
             &Links::default(),
             ellipses,
             &params(),
+            None::<&Workers<()>>,
             &mut QuadScratch::default(),
             &mut out,
         );
@@ -696,6 +768,7 @@ mod tests {
                 &Links::default(),
                 &[],
                 &p,
+                None::<&Workers<()>>,
                 &mut QuadScratch::default(),
                 &mut out,
             );
@@ -770,11 +843,7 @@ mod tests {
         ];
         polys.line_ranges = vec![(0, 3), (3, 6)];
         let mut links = Links::default();
-        find_bridges(
-            &polys,
-            None::<&super::super::parallel::Workers<()>>,
-            &mut links,
-        );
+        find_bridges(&polys, None::<&Workers<()>>, &mut links);
         let with = |mut c: Corner, lines: [u32; 2]| {
             c.lines = lines;
             c
@@ -788,7 +857,8 @@ mod tests {
         assert!(the_tag(&search(&corners, &[])).is_none());
         let mut out = Vec::new();
         let s = &mut QuadScratch::default();
-        find_candidates(&corners, 4, &links, &[], &params(), s, &mut out);
+        let none = None::<&Workers<()>>;
+        find_candidates(&corners, 4, &links, &[], &params(), none, s, &mut out);
         assert_eq!(the_tag(&out), Some([false; 4]), "{out:?}");
         assert!(out.iter().all(|c| c.linked));
     }

@@ -1,0 +1,265 @@
+//! Stage 6 on the detector's worker threads: the candidates are read
+//! ahead of the sequential decoding loop, which takes their readings in
+//! order.
+//!
+//! Whether a candidate is decoded depends on the tags found before it (a
+//! candidate inside a tag read cleanly is skipped), so the loop itself
+//! stays sequential ([`decode_in_order`]); what takes the time, refusing
+//! or reading a candidate ([`outcome`]), is a pure function of the image
+//! and the candidate, so it can be done ahead, on any thread, and the
+//! loop's result is the one-thread result whatever was read ahead, by
+//! whom and when.
+//!
+//! Each thread takes the next candidate the tags found so far would not
+//! skip, as long as fewer than [`AHEAD_PER_THREAD`] per thread are taken
+//! or read past the one the loop is at (and no more than the attempts
+//! left), reads it and leaves the outcome for the loop. The loop takes the
+//! outcome of each candidate it decodes: ready, or read by itself if no
+//! thread took it; while another thread is reading it, the loop reads
+//! ahead too rather than wait. There is no barrier: a thread waits only
+//! when the candidates ahead are all taken. A reading ahead is in vain
+//! when a tag found meanwhile makes the loop skip its candidate; those
+//! are few, since candidates over one tag are seldom next to each other in
+//! the order.
+
+use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
+
+use super::decoding::{
+    centre_of, decode_in_order, outcome, plan, DecodingParams, Found, Outcome, Target,
+};
+use super::parallel::Workers;
+use super::quads::Candidate;
+use super::refine::RefineScratch;
+use crate::view::GrayView;
+
+/// Most candidates taken or read ahead of the loop per worker thread:
+/// enough that a thread finds work while the others read slow
+/// candidates, few enough that little is read in vain when a tag found
+/// makes the loop skip candidates read ahead.
+const AHEAD_PER_THREAD: usize = 4;
+
+/// A candidate's reading ahead.
+#[derive(Debug, Default)]
+enum Slot {
+    /// Not taken by any thread.
+    #[default]
+    Free,
+    /// Being read by some thread.
+    Taken,
+    /// Read.
+    Done(Outcome),
+}
+
+/// What the threads share, behind one lock (taken a few times per
+/// candidate; a candidate takes a hundred microseconds and more).
+#[derive(Debug)]
+struct Ahead {
+    slots: Vec<Slot>,
+    /// The next candidate to look at for reading ahead.
+    next: usize,
+    /// The candidate the loop is at: outcomes of those before it are no
+    /// longer needed.
+    at: usize,
+    /// Most candidates taken or read from `at` on.
+    limit: usize,
+    /// The tags the loop has found so far, for skipping candidates ahead.
+    found: Vec<Found>,
+    /// The loop has finished: threads stop reading ahead.
+    finished: bool,
+}
+
+impl Ahead {
+    /// The next candidate to read ahead, if the limit allows one and one
+    /// is left that the tags found so far would not skip; it is marked
+    /// taken.
+    fn take(&mut self, wanted: impl Fn(usize, &[Found]) -> bool) -> Option<usize> {
+        self.next = self.next.max(self.at);
+        let ahead = self.slots[self.at..self.next]
+            .iter()
+            .filter(|s| !matches!(s, Slot::Free))
+            .count();
+        if ahead >= self.limit {
+            return None;
+        }
+        while self.next < self.slots.len() {
+            let k = self.next;
+            self.next += 1;
+            if matches!(self.slots[k], Slot::Free) && wanted(k, &self.found) {
+                self.slots[k] = Slot::Taken;
+                return Some(k);
+            }
+        }
+        None
+    }
+}
+
+/// The shared state and the signal that it changed.
+struct Shared {
+    ahead: Mutex<Ahead>,
+    changed: Condvar,
+}
+
+impl Shared {
+    fn lock(&self) -> MutexGuard<'_, Ahead> {
+        // A thread that panicked while holding the lock left the state
+        // consistent (every change is made whole under it).
+        self.ahead.lock().unwrap_or_else(PoisonError::into_inner)
+    }
+
+    fn wait<'a>(&self, g: MutexGuard<'a, Ahead>) -> MutexGuard<'a, Ahead> {
+        self.changed.wait(g).unwrap_or_else(PoisonError::into_inner)
+    }
+
+    /// Reads candidate `k`, taken by this thread, with `read`, and leaves
+    /// the outcome in its slot. Should `read` panic, the slot is freed
+    /// (the loop then reads the candidate itself) before the panic goes
+    /// on.
+    fn read_into_slot(&self, k: usize, read: &impl Fn(usize) -> Outcome) {
+        struct Release<'a>(&'a Shared, usize, bool);
+        impl Drop for Release<'_> {
+            fn drop(&mut self) {
+                if !self.2 {
+                    self.0.lock().slots[self.1] = Slot::Free;
+                    self.0.changed.notify_all();
+                }
+            }
+        }
+        let mut release = Release(self, k, false);
+        let o = read(k);
+        release.2 = true;
+        self.lock().slots[k] = Slot::Done(o);
+        self.changed.notify_all();
+    }
+
+    /// A worker thread's part: read ahead until the loop has finished.
+    fn read_ahead(
+        &self,
+        wanted: &impl Fn(usize, &[Found]) -> bool,
+        read: &impl Fn(usize) -> Outcome,
+    ) {
+        let mut g = self.lock();
+        while !g.finished {
+            match g.take(wanted) {
+                Some(k) => {
+                    drop(g);
+                    self.read_into_slot(k, read);
+                    g = self.lock();
+                }
+                None => g = self.wait(g),
+            }
+        }
+    }
+
+    /// The loop's part: the outcome of candidate `j`, the tags found so
+    /// far `found`, `left` attempts left.
+    fn outcome_of(
+        &self,
+        j: usize,
+        found: &[Found],
+        left: usize,
+        per_pass: usize,
+        wanted: &impl Fn(usize, &[Found]) -> bool,
+        read: &impl Fn(usize) -> Outcome,
+    ) -> Outcome {
+        let mut g = self.lock();
+        g.at = j;
+        g.limit = per_pass.min(left);
+        g.found.clear();
+        g.found.extend_from_slice(found);
+        self.changed.notify_all();
+        loop {
+            match &g.slots[j] {
+                Slot::Done(_) => {
+                    if let Slot::Done(o) = std::mem::take(&mut g.slots[j]) {
+                        return o;
+                    }
+                }
+                Slot::Free => {
+                    g.slots[j] = Slot::Taken;
+                    drop(g);
+                    return read(j);
+                }
+                // Another thread reads it: read ahead meanwhile.
+                Slot::Taken => match g.take(wanted) {
+                    Some(k) => {
+                        drop(g);
+                        self.read_into_slot(k, read);
+                        g = self.lock();
+                    }
+                    None => g = self.wait(g),
+                },
+            }
+        }
+    }
+
+    /// Marks the loop finished and wakes the threads waiting for work.
+    fn finish(&self) {
+        self.lock().finished = true;
+        self.changed.notify_all();
+    }
+}
+
+/// [`super::decoding::decode_candidates`] on `workers`' threads, with the
+/// same result: the candidates read ahead of the loop (see the module
+/// documentation), each thread with its buffers from `scratch`.
+pub(crate) fn decode_candidates_par<W: Default + Send>(
+    img: &GrayView<'_>,
+    candidates: &[Candidate],
+    scale: f64,
+    targets: &[Target],
+    p: &DecodingParams,
+    workers: &Workers<W>,
+    scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
+) -> (Vec<Found>, usize) {
+    let centres: Vec<[f64; 2]> = candidates.iter().map(|c| centre_of(c, scale)).collect();
+    let wanted = |k: usize, found: &[Found]| plan(&candidates[k], centres[k], found, p).is_some();
+    let read = |k: usize| {
+        let mut w = workers.scratch();
+        outcome(
+            img,
+            &candidates[k],
+            scale,
+            centres[k],
+            targets,
+            p,
+            scratch(&mut w),
+        )
+    };
+    let per_pass = AHEAD_PER_THREAD * workers.threads();
+    let shared = Shared {
+        ahead: Mutex::new(Ahead {
+            slots: std::iter::repeat_with(Slot::default)
+                .take(candidates.len())
+                .collect(),
+            next: 0,
+            at: 0,
+            limit: per_pass.min(p.max_attempts),
+            found: Vec::new(),
+            finished: false,
+        }),
+        changed: Condvar::new(),
+    };
+    // Finishes the loop even when it panics, so that the threads reading
+    // ahead stop and the scope can end.
+    struct Finish<'a>(&'a Shared);
+    impl Drop for Finish<'_> {
+        fn drop(&mut self) {
+            self.0.finish();
+        }
+    }
+    workers.install(|| {
+        rayon::scope(|s| {
+            for _ in 1..workers.threads() {
+                s.spawn(|_| shared.read_ahead(&wanted, &read));
+            }
+            let _finish = Finish(&shared);
+            let mut attempts = 0;
+            decode_in_order(candidates, scale, p, |j, _, found| {
+                let left = p.max_attempts.saturating_sub(attempts);
+                let o = shared.outcome_of(j, found, left, per_pass, &wanted, &read);
+                attempts += usize::from(matches!(o, Outcome::Read(_)));
+                o
+            })
+        })
+    })
+}
