@@ -261,31 +261,6 @@ mod tests {
     use super::super::contours;
     use super::*;
 
-    /// A random binary image (padded, `w` x `h` inside): rectangles of
-    /// both values (long runs, nested regions, holes) and salt noise.
-    fn random_image(w: usize, h: usize, density: usize, seed: &mut u64) -> Vec<u8> {
-        let pw = w + 2;
-        let mut f = vec![0u8; pw * (h + 2)];
-        let mut next = |m: usize| {
-            *seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (*seed >> 33) as usize % m.max(1)
-        };
-        for _ in 0..density * 4 {
-            let (x0, y0) = (next(w), next(h));
-            let (x1, y1) = ((x0 + next(40)).min(w), (y0 + next(30)).min(h));
-            let v = u8::from(next(3) > 0);
-            for y in y0..y1 {
-                f[(y + 1) * pw + x0 + 1..(y + 1) * pw + x1 + 1].fill(v);
-            }
-        }
-        for _ in 0..density * 20 {
-            f[(next(h) + 1) * pw + next(w) + 1] ^= 1;
-        }
-        f
-    }
-
     /// The banded scan against the one scan, on 2 threads, in bands of
     /// every height from one row to the whole image.
     fn check(f: &[u8], pw: usize, ph: usize, what: &str) {
@@ -322,7 +297,7 @@ mod tests {
             (40, 1, 1),
         ] {
             for _ in 0..4 {
-                let f = random_image(w, h, density, &mut seed);
+                let f = contours::random_binary(w, h, density, 30, &mut seed);
                 check(&f, w + 2, h + 2, &format!("{w}x{h}"));
             }
         }

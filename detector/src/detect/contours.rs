@@ -330,6 +330,39 @@ pub(super) fn direction(a: usize, b: usize, pw: usize) -> usize {
     }
 }
 
+/// A random binary image for tests (padded: `w` x `h` inside a border of
+/// zeros): rectangles of both values up to 40 x `max_h` (long runs, nested
+/// regions, holes), then salt noise.
+#[cfg(test)]
+pub(crate) fn random_binary(
+    w: usize,
+    h: usize,
+    density: usize,
+    max_h: usize,
+    seed: &mut u64,
+) -> Vec<u8> {
+    let pw = w + 2;
+    let mut f = vec![0u8; pw * (h + 2)];
+    let mut next = |m: usize| {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (*seed >> 33) as usize % m.max(1)
+    };
+    for _ in 0..density * 4 {
+        let (x0, y0) = (next(w), next(h));
+        let (x1, y1) = ((x0 + next(40)).min(w), (y0 + next(max_h)).min(h));
+        let v = u8::from(next(3) > 0);
+        for y in y0..y1 {
+            f[(y + 1) * pw + x0 + 1..(y + 1) * pw + x1 + 1].fill(v);
+        }
+    }
+    for _ in 0..density * 20 {
+        f[(next(h) + 1) * pw + next(w) + 1] ^= 1;
+    }
+    f
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -405,26 +438,8 @@ mod tests {
     fn block_skipping_changes_nothing() {
         let mut seed = 7u64;
         for (w, h, density) in [(70, 40, 2), (33, 50, 8), (130, 20, 15), (17, 17, 1)] {
-            // Random rectangles: long runs of both values, and noise.
             let pw = w + 2;
-            let mut f = vec![0u8; pw * (h + 2)];
-            let mut next = |m: usize| {
-                seed = seed
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
-                (seed >> 33) as usize % m
-            };
-            for _ in 0..density * 4 {
-                let (x0, y0) = (next(w), next(h));
-                let (x1, y1) = ((x0 + next(40)).min(w), (y0 + next(12)).min(h));
-                let v = u8::from(next(3) > 0);
-                for y in y0..y1 {
-                    f[(y + 1) * pw + x0 + 1..(y + 1) * pw + x1 + 1].fill(v);
-                }
-            }
-            for _ in 0..density * 20 {
-                f[(next(h) + 1) * pw + next(w) + 1] ^= 1;
-            }
+            let mut f = random_binary(w, h, density, 12, &mut seed);
             let (mut a, mut b) = (Contours::default(), Contours::default());
             let mut g = f.clone();
             find_contours(&mut f, pw, h + 2, 1, usize::MAX, &mut a);
