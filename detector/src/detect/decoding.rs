@@ -98,9 +98,13 @@ pub(crate) fn decode_candidates(
     p: &DecodingParams,
     scratch: &mut RefineScratch,
 ) -> (Vec<Found>, usize) {
-    decode_in_order(candidates, scale, p, |j, centre, _| {
-        outcome(img, &candidates[j], scale, centre, targets, p, scratch)
-    })
+    decode_in_order(
+        candidates,
+        scale,
+        p,
+        |j, centre| outcome(img, &candidates[j], scale, centre, targets, p, scratch),
+        |_, _| {},
+    )
 }
 
 /// What decoding a candidate came to: refused by [`plainly_not_a_tag`]
@@ -222,14 +226,16 @@ pub(super) fn plan(
 
 /// The sequential decoding loop: each candidate in turn skipped
 /// ([`plan`]) or decoded, the [`Outcome`] of candidate `j` (centroid
-/// `centre`, the tags found so far `found`) from `outcome`; a refused
-/// rival counts as one that did not read. Returns the tags and the number
-/// of candidates read.
+/// `centre`) from `outcome`; a refused rival counts as one that did not
+/// read. `taken(j, found)` sees the tags found so far after each outcome
+/// was taken into them. Returns the tags and the number of candidates
+/// read.
 pub(super) fn decode_in_order(
     candidates: &[Candidate],
     scale: f64,
     p: &DecodingParams,
-    mut outcome: impl FnMut(usize, [f64; 2], &[Found]) -> Outcome,
+    mut outcome: impl FnMut(usize, [f64; 2]) -> Outcome,
+    mut taken: impl FnMut(usize, &[Found]),
 ) -> (Vec<Found>, usize) {
     let mut found: Vec<Found> = Vec::new();
     let mut attempts = 0;
@@ -241,37 +247,41 @@ pub(super) fn decode_in_order(
         let Some(rival) = plan(cand, centre, &found, p) else {
             continue;
         };
-        let best = match outcome(j, centre, &found) {
-            Outcome::Refused => {
-                // A refused rival counts as one that did not read.
-                if let Some(r) = rival {
-                    found[r].rivals += 1;
-                }
-                continue;
+        match (rival, outcome(j, centre)) {
+            // A refused rival counts as one that did not read.
+            (Some(r), Outcome::Refused) => found[r].rivals += 1,
+            (None, Outcome::Refused) => {}
+            (rival, Outcome::Read(best)) => {
+                attempts += 1;
+                take_reading(&mut found, rival, best.map(|b| *b));
             }
-            Outcome::Read(best) => best.map(|b| *b),
-        };
-        attempts += 1;
-        match (rival, best) {
-            (Some(r), Some(b)) => {
-                let f = &mut found[r];
-                f.rivals += 1;
-                // Only a reading of the same tag competes; a different
-                // id inside a found tag is not trusted over it.
-                let same = b.det.family == f.reading.det.family && b.det.id == f.reading.det.id;
-                if same && b.beats(&f.reading) {
-                    f.reading = b;
-                }
-            }
-            (Some(r), None) => found[r].rivals += 1,
-            (None, Some(b)) => found.push(Found {
-                reading: b,
-                rivals: 0,
-            }),
-            (None, None) => {}
         }
+        taken(j, &found);
     }
     (found, attempts)
+}
+
+/// Takes a candidate's reading `best` into the tags `found`: a rival of
+/// tag `rival` if it lies inside one, else perhaps a new tag.
+fn take_reading(found: &mut Vec<Found>, rival: Option<usize>, best: Option<Reading>) {
+    match (rival, best) {
+        (Some(r), Some(b)) => {
+            let f = &mut found[r];
+            f.rivals += 1;
+            // Only a reading of the same tag competes; a different
+            // id inside a found tag is not trusted over it.
+            let same = b.det.family == f.reading.det.family && b.det.id == f.reading.det.id;
+            if same && b.beats(&f.reading) {
+                f.reading = b;
+            }
+        }
+        (Some(r), None) => found[r].rivals += 1,
+        (None, Some(b)) => found.push(Found {
+            reading: b,
+            rivals: 0,
+        }),
+        (None, None) => {}
+    }
 }
 
 /// Cells across the data grid of the finest family detected.

@@ -265,6 +265,9 @@ struct Workspace {
 struct Segmentation {
     tscratch: threshold::ThresholdScratch,
     binary: Vec<u8>,
+    /// `binary` as thresholded, when stage 2 runs in bands: they label
+    /// their rows of `binary` and read the rest here.
+    copy: Vec<u8>,
     bscratch: contour_bands::BandScratch,
     contours: contours::Contours,
     polys: lines::Polygons,
@@ -301,7 +304,7 @@ impl Segmentation {
         let mut laps = Laps(Instant::now());
         let work = match workers {
             None => threshold::threshold(img, &p.threshold, &mut self.tscratch, &mut self.binary),
-            Some(w) => threshold_bands(img, &p.threshold, w, &mut self.binary),
+            Some(w) => threshold_bands(img, &p.threshold, w, &mut self.binary, &mut self.copy),
         };
         times.threshold += laps.lap();
         let (ww, wh) = (work.width, work.height);
@@ -317,7 +320,8 @@ impl Segmentation {
                 &mut self.contours,
             ),
             Some(w) => contour_bands::find_contours(
-                &self.binary,
+                &mut self.binary,
+                &self.copy,
                 pw,
                 ph,
                 min_len,
@@ -368,12 +372,15 @@ impl Segmentation {
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
 /// threads, each with the buffers of the thread it runs on; the same bytes
-/// as one pass.
+/// as one pass. Each band also copies its rows into `copy`, while they are
+/// in its cache: stage 2's bands (`contour_bands`) read the image as
+/// thresholded there.
 fn threshold_bands(
     img: &GrayView<'_>,
     p: &threshold::ThresholdParams,
     workers: &Workers<Workspace>,
     out: &mut Vec<u8>,
+    copy: &mut Vec<u8>,
 ) -> threshold::Working {
     let work = threshold::working(img, p);
     let (w, h) = (work.width, work.height);
@@ -382,14 +389,20 @@ fn threshold_bands(
         .min(h / MIN_BAND_ROWS)
         .max(1);
     let per = h.div_ceil(bands).max(1);
+    let pw = w + 2;
+    copy.resize(pw * (h + 2), 0);
+    copy[..pw].fill(0);
+    copy[(h + 1) * pw..].fill(0);
     workers.install(|| {
-        rows.par_chunks_mut(per * (w + 2))
+        rows.par_chunks_mut(per * pw)
+            .zip(copy[pw..(h + 1) * pw].par_chunks_mut(per * pw))
             .enumerate()
-            .for_each(|(k, band)| {
+            .for_each(|(k, (band, copy))| {
                 let y0 = k * per;
                 let mut ws = workers.scratch();
                 let rows = y0..(y0 + per).min(h);
                 threshold::threshold_rows(img, p, &work, rows, &mut ws.seg.tscratch, band);
+                copy.copy_from_slice(band);
             });
     });
     work
