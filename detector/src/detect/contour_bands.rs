@@ -45,8 +45,8 @@ use super::parallel::Workers;
 /// Bands per worker thread: one. Each border crossing a band edge is
 /// followed once more for each band it reaches, which on the 4K frames of
 /// the wild benchmark costs more than the better balance of more bands
-/// gains (two threads, 3840 x 2160, median per frame: 1.61 ms in two
-/// bands, 1.65 ms in three, 1.90 ms in four; 1.87 ms in one scan).
+/// gains (two threads, median per frame: 1.48-1.50 ms in two bands,
+/// 1.63 ms in three or four; 1.88-1.94 ms in the one scan of one thread).
 const BANDS_PER_THREAD: usize = 1;
 
 /// Fewest rows of a band: borders crossing band edges are followed again

@@ -130,11 +130,15 @@ pub struct StageTimes {
     pub decode: Duration,
     /// The full-resolution second look around small disc rims (its own
     /// segmentation, refinement and decoding; see
-    /// [`DetectorConfig::small_tags`]).
+    /// [`DetectorConfig::small_tags`]). With worker threads
+    /// ([`DetectorConfig::threads`]) it also holds most of the model fits
+    /// of [`StageTimes::verify`]: the tags found before it are fitted
+    /// beside it.
     pub small: Duration,
     /// One detection per tag, sorted.
     pub dedup: Duration,
-    /// Model fit of each detection.
+    /// Model fit of each detection (with worker threads, of those the
+    /// fits made beside [`StageTimes::small`] did not cover).
     pub verify: Duration,
     /// Whole frame.
     pub total: Duration,
@@ -616,6 +620,9 @@ impl Detector {
             ),
         };
         st.times.decode = laps.lap();
+        // With worker threads, the fits of the tags found so far, made
+        // beside the small-tag regions (see `decoding::verify_ahead`).
+        let mut ahead = Vec::new();
         if self.config.small_tags && scale > 1.0 {
             let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
             let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
@@ -640,14 +647,22 @@ impl Detector {
                     // decoded more than were left after the regions
                     // before it is looked at again with what was left (a
                     // run with a smaller budget is the larger one's,
-                    // stopped early).
+                    // stopped early). The tags found so far are fitted
+                    // meanwhile, the threads taking regions and fits as
+                    // they come free.
                     let left = p.decoding.max_attempts.saturating_sub(attempts);
-                    let runs: Vec<_> = w.install(|| {
-                        regions
-                            .par_iter()
-                            .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
-                            .collect()
+                    let (runs, fits): (Vec<_>, _) = w.install(|| {
+                        rayon::join(
+                            || {
+                                regions
+                                    .par_iter()
+                                    .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
+                                    .collect()
+                            },
+                            || decoding::verify_ahead(&img, &found, &self.targets, &p.decoding),
+                        )
                     });
+                    ahead = fits;
                     for (r, (more, n)) in regions.iter().zip(runs) {
                         let budget = p.decoding.max_attempts.saturating_sub(attempts);
                         let (more, n) = if n <= budget {
@@ -662,11 +677,17 @@ impl Detector {
             }
             st.times.small = laps.lap();
         }
-        let out = decoding::one_per_tag(found);
-        st.times.dedup = laps.lap();
         let out = match workers {
-            None => decoding::verify_all(&img, out, &self.targets, &p.decoding),
-            Some(w) => decoding::verify_all_par(&img, out, &self.targets, &p.decoding, w),
+            None => {
+                let out = decoding::one_per_tag(found);
+                st.times.dedup = laps.lap();
+                decoding::verify_all(&img, out, &self.targets, &p.decoding)
+            }
+            Some(w) => {
+                let out = decoding::one_per_tag_indexed(found);
+                st.times.dedup = laps.lap();
+                decoding::verify_all_par(&img, out, ahead, &self.targets, &p.decoding, w)
+            }
         };
         st.times.verify = laps.lap();
         st.decode_attempts = attempts;
