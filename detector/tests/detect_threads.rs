@@ -12,7 +12,7 @@ use coppertag::{DetectionStats, Detector, DetectorConfig, Error, Family};
 use image::GrayImage;
 
 /// Thread counts compared with one thread: two (the bar's machine), three
-/// (bands, batches and pieces that do not divide evenly).
+/// (bands, windows and pieces that do not divide evenly).
 const THREADS: [usize; 2] = [2, 3];
 
 /// Every count of `s`, times left out (they differ from run to run).
@@ -143,6 +143,82 @@ fn small_tags_give_the_same_detections_on_any_thread_count() {
         found >= 6 && regions >= 6,
         "{found} of 8 small tags, {regions} regions"
     );
+}
+
+/// A frame of `w` x `h` with tags centred on the rows where the bands of
+/// stages 1 and 2 meet on two and three threads (a half and the thirds of
+/// the height, both at the working scale and at full resolution), of three
+/// sizes, each a little off the row so that the band edge crosses it at a
+/// different height, and a ring around each (a border that two bands
+/// follow).
+fn tags_on_band_edges(w: u32, h: u32, seed: u64) -> (GrayImage, usize) {
+    let mut rng = Rng::new(seed);
+    let mut img = GrayImage::from_pixel(w, h, image::Luma([165]));
+    let mut placed = 0;
+    for (k, &row) in [h / 2, h / 3, 2 * h / 3].iter().enumerate() {
+        for (j, side) in [34.0, 90.0, 180.0].into_iter().enumerate() {
+            let u = f64::from(w) * (j as f64 + 0.6) / 3.3;
+            let v = f64::from(row) + rng.range(-0.3, 0.3) * side;
+            let d = CAMERA.f * TAG_SIDE_M / side;
+            let r = rotation(
+                rng.range(-0.3, 0.3),
+                rng.range(-0.3, 0.3),
+                rng.range(0.0, 6.2),
+            );
+            let t = [
+                (u - CAMERA.cx()) * d / CAMERA.f,
+                (v - CAMERA.cy()) * d / CAMERA.f,
+                d,
+            ];
+            let hom = CAMERA.homography(&r, t, TAG_SIDE_M);
+            let family = if (k + j) % 2 == 0 {
+                Family::ct14()
+            } else {
+                Family::ct8()
+            };
+            // A dark ring around the tag, crossing the band edge too.
+            let ring = 1.3 * side;
+            for y in (v - ring - 6.0).max(0.0) as u32..((v + ring + 6.0) as u32).min(h) {
+                for x in (u - ring - 6.0).max(0.0) as u32..((u + ring + 6.0) as u32).min(w) {
+                    let dist = (f64::from(x) - u).hypot(f64::from(y) - v);
+                    if (dist - ring).abs() < 3.0 {
+                        img.put_pixel(x, y, image::Luma([40]));
+                    }
+                }
+            }
+            Scene::new(family, (10 * k + j) as u64, w, h, hom).paint(&mut img);
+            placed += 1;
+        }
+    }
+    (imageproc::filter::gaussian_blur_f32(&img, 0.7), placed)
+}
+
+#[test]
+fn tags_across_band_edges_give_the_same_detections_on_any_thread_count() {
+    // Even and odd frame sizes: the bands of an odd number of rows do not
+    // divide evenly, and a downsampled odd height drops its last row.
+    for (w, h, seed) in [(1920, 1080, 21), (1283, 723, 22), (1601, 1201, 23)] {
+        let (img, placed) = tags_on_band_edges(w, h, seed);
+        let frames = std::slice::from_ref(&img);
+        let (found, _) = same_on_every_thread_count(frames, &DetectorConfig::default());
+        assert!(found * 3 >= placed * 2, "{w}x{h}: {found} of {placed}");
+        // At full resolution the bands fall on other rows.
+        let full = DetectorConfig {
+            downsample: 1,
+            ..DetectorConfig::default()
+        };
+        same_on_every_thread_count(frames, &full);
+    }
+}
+
+#[test]
+fn wild_frames_of_odd_heights_give_the_same_detections_on_any_thread_count() {
+    for (height, seed) in [(1081, 0xD1), (721, 0xD2)] {
+        let cam = camera(height);
+        let frames: Vec<_> = (0..2).map(|i| wild_frame(seed + i, &cam).0).collect();
+        assert_eq!(frames[0].height(), height);
+        same_on_every_thread_count(&frames, &DetectorConfig::default());
+    }
 }
 
 #[test]

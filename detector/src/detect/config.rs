@@ -132,13 +132,15 @@ pub struct DetectorConfig {
     pub max_candidates: usize,
     /// Threads one call to [`crate::Detector::detect`] runs on. Default 1:
     /// the calling thread only, as a program that runs one detector per
-    /// camera or per core wants. More splits the threshold into bands and
-    /// the line, corner and ellipse stages over borders, decodes candidates,
-    /// small-tag regions and verifications in parallel, on a thread pool of
-    /// the detector's own (not rayon's global one). 0 means one thread per
-    /// core the system reports. At most [`MAX_THREADS`]. The detections and
-    /// [`crate::DetectionStats`] counts are the same for every value; only
-    /// the times differ.
+    /// camera or per core wants. More splits the threshold and the border
+    /// following into bands, the line, corner, ellipse and quad stages over
+    /// borders, corners and candidates, decodes candidates, small-tag
+    /// regions and verifications in parallel, on a thread pool of the
+    /// detector's own (not rayon's global one), whose threads look for
+    /// work without pause while a frame is detected (they sleep between
+    /// frames). 0 means one thread per core the system reports. At most
+    /// [`MAX_THREADS`]. The detections and [`crate::DetectionStats`] counts
+    /// are the same for every value; only the times differ.
     pub threads: usize,
 }
 

@@ -9,36 +9,45 @@
 //! region), and following a border from a given start reads only which
 //! pixels are foreground. The labels the scan writes only decide which
 //! pixels are such starts. So each band runs the sequential scan over its
-//! own rows, reading the whole (unchanged) binary image and keeping its
-//! labels in a buffer of its own, written only inside the band; a border
-//! it follows may leave the band, and is followed to its end.
+//! own rows, labelling them in place as the one scan does; a border it
+//! follows may leave the band, and is followed to its end, through a copy
+//! of the binary image as thresholded (the other bands label their own
+//! rows meanwhile), made by stage 1's bands.
 //!
 //! A band does not see the labels left by borders that start in the bands
 //! above it, so it may take a pixel of such a border for a start. Such a
 //! border is followed all the same (its labels inside the band are needed,
-//! as in the one scan), and recognised as not starting there: an outer
-//! border that does starts at its own first pixel, so it passes no pixel
-//! earlier in the raster; a hole border that does starts just left of the
-//! first pixel of its hole, so the first background pixel it examines
-//! (step 3.3) is the one right of its start. A border that fails its test
-//! is dropped; a pixel that took it for an outer border is then tested
-//! again as the start of a hole border, which the one scan, seeing the
-//! pixel already on a border, would have done. Borders kept are those of
-//! the one scan; the bands' lists, joined in band order, are in its order.
+//! as in the one scan), and recognised as not starting there by where it
+//! goes: above the band. An outer border starts at the first pixel of its
+//! region, so one that starts in the band stays in and below it; one
+//! whose region begins above the band reaches there. (One whose region
+//! begins in the band but which the band took up at a later pixel is not
+//! possible: the band started it at the region's first pixel and labelled
+//! it.) A hole border starts in the row of its hole's first pixel and
+//! reaches one row above it, so one that starts in the band reaches at
+//! most the row above the band, while one whose hole begins above the
+//! band reaches two rows above it. A border that does not start in the
+//! band is dropped; a pixel that took it for an outer border is then
+//! tested again as the start of a hole border, which the one scan, seeing
+//! the pixel already on a border, would have done. Borders kept are those
+//! of the one scan; the bands' lists, joined in band order, are in its
+//! order.
 //!
 //! The cost: borders that cross into a band from above are followed once
-//! more there; bands are few (see [`BANDS_PER_THREAD`]).
+//! more there, so bands are few (see [`BANDS_PER_THREAD`]); and each band
+//! tells its rows from the others' at every pixel it reads.
 
 use rayon::prelude::*;
 
 use super::contours::{follow, offsets, scan, Border, Contours, Labels, EAST, SKIP_BLOCK, WEST};
 use super::parallel::Workers;
 
-/// Bands per worker thread: two, so that a thread slowed by another
-/// process (or a band with more borders than the rest) leaves a band for
-/// the other threads, while each border crossing a band edge is followed
-/// once more for each band it reaches.
-const BANDS_PER_THREAD: usize = 2;
+/// Bands per worker thread: one. Each border crossing a band edge is
+/// followed once more for each band it reaches, which on the 4K frames of
+/// the wild benchmark costs more than the better balance of more bands
+/// gains (two threads, median per frame: 1.48-1.50 ms in two bands,
+/// 1.63 ms in three or four; 1.88-1.94 ms in the one scan of one thread).
+const BANDS_PER_THREAD: usize = 1;
 
 /// Fewest rows of a band: borders crossing band edges are followed again
 /// by the band below, so thin bands would follow many borders twice.
@@ -47,70 +56,63 @@ const MIN_BAND_ROWS: usize = 64;
 /// Buffers of the banded scan, kept between frames.
 #[derive(Debug, Default)]
 pub(crate) struct BandScratch {
-    /// The labels of every band, one byte per pixel of the padded image:
-    /// 0 not on a border followed in the band, 2 on one, 3 on one with
-    /// background on its right.
-    labels: Vec<u8>,
     /// The borders each band keeps.
     bands: Vec<Contours>,
 }
 
-/// A band's view of the image: the shared binary image, and its own
-/// labels for the rows from padded index `lo` on.
+/// A band's view of the image: its own rows (the labels, `own`), from
+/// padded index `lo` on, labelled in place (the values of `contours`), and
+/// the unlabelled copy of the whole image for the pixels outside them.
 struct Band<'a> {
-    bin: &'a [u8],
-    labels: &'a mut [u8],
     lo: usize,
-    /// Smallest pixel visited and background pixel examined by the border
-    /// being followed.
-    min_visited: usize,
-    min_swept: usize,
-}
-
-impl Band<'_> {
-    /// The band's label of pixel `i` (inside the band).
-    fn label(&self, i: usize) -> u8 {
-        self.labels[i - self.lo]
-    }
+    copy: &'a [u8],
+    /// The border being followed does not start in the band if it visits
+    /// a pixel before this one (see the module documentation).
+    above: usize,
 }
 
 impl Labels for Band<'_> {
     #[inline(always)]
-    fn fg(&self, i: usize) -> bool {
-        self.bin[i] != 0
-    }
-
-    #[inline(always)]
-    fn block(&self, i: usize) -> Option<&[u8; SKIP_BLOCK + 2]> {
-        self.bin[i..].first_chunk()
-    }
-
-    #[inline(always)]
-    fn visit(&mut self, i: usize, east_zero: bool) {
-        self.min_visited = self.min_visited.min(i);
-        // Outside the band (below `lo`, the index wraps) the label is
-        // another band's.
-        if let Some(v) = self.labels.get_mut(i.wrapping_sub(self.lo)) {
-            if east_zero {
-                *v = 3;
-            } else if *v == 0 {
-                *v = 2;
-            }
+    fn fg(&self, own: &[u8], i: usize) -> bool {
+        // Outside the band (below `lo`, the index wraps) the pixel is read
+        // from the copy.
+        match own.get(i.wrapping_sub(self.lo)) {
+            Some(&v) => v != 0,
+            None => self.copy[i] != 0,
         }
     }
 
     #[inline(always)]
-    fn swept(&mut self, i: usize) {
-        self.min_swept = self.min_swept.min(i);
+    fn block<'a>(&self, own: &'a [u8], i: usize) -> Option<&'a [u8; SKIP_BLOCK + 2]> {
+        own.get(i.wrapping_sub(self.lo)..)?.first_chunk()
+    }
+
+    #[inline(always)]
+    fn visit(&self, own: &mut [u8], i: usize, east_zero: bool) -> bool {
+        match own.get_mut(i.wrapping_sub(self.lo)) {
+            Some(v) => {
+                if east_zero {
+                    *v = 3;
+                } else if *v == 1 {
+                    *v = 2;
+                }
+                false
+            }
+            // Outside the band the labels are another band's; only
+            // where the border goes counts.
+            None => i < self.above,
+        }
     }
 }
 
 /// [`super::contours::find_contours`] of the padded binary image `bin`
-/// (`pw` x `ph`) on `workers`' threads, in bands of rows; `bin` is left
-/// as it is.
+/// (`pw` x `ph`) on `workers`' threads, in bands of rows, with `copy` an
+/// unlabelled copy of `bin`; `bin` is left labelled (not quite as the one
+/// scan leaves it: the labels are of no use after this stage).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn find_contours<W: Default + Send>(
-    bin: &[u8],
+    bin: &mut [u8],
+    copy: &[u8],
     pw: usize,
     ph: usize,
     min_len: usize,
@@ -127,7 +129,7 @@ pub(crate) fn find_contours<W: Default + Send>(
     let h = ph - 2;
     let bands = (workers.threads() * BANDS_PER_THREAD).min(h / MIN_BAND_ROWS);
     let size = Size { pw, ph, bands };
-    follow_bands(bin, size, min_len, max_len, workers, s, out);
+    follow_bands(bin, copy, size, min_len, max_len, workers, s, out);
 }
 
 /// The padded image's row length and number of rows, and the bands it is
@@ -139,9 +141,12 @@ struct Size {
     bands: usize,
 }
 
-/// [`find_contours`] in (about) `size.bands` bands of equal rows.
+/// [`find_contours`] in `size.bands` bands of (about) equal rows, at
+/// most one per row.
+#[allow(clippy::too_many_arguments)]
 fn follow_bands<W: Default + Send>(
-    bin: &[u8],
+    bin: &mut [u8],
+    copy: &[u8],
     size: Size,
     min_len: usize,
     max_len: usize,
@@ -153,39 +158,44 @@ fn follow_bands<W: Default + Send>(
     out.points.clear();
     out.list.clear();
     let h = ph - 2;
-    let per = h.div_ceil(bands.max(1));
-    s.labels.resize(pw * ph, 0);
-    s.bands.resize_with(h.div_ceil(per), Contours::default);
+    // Band k holds the padded rows from ends[k] to ends[k + 1].
+    let bands = bands.clamp(1, h.max(1));
+    let ends: Vec<usize> = (0..=bands).map(|k| 1 + k * h / bands).collect();
+    s.bands.resize_with(bands, Contours::default);
+    let mut rest = &mut bin[pw..(h + 1) * pw];
+    let mut pieces = Vec::with_capacity(bands);
+    for k in 0..bands {
+        let (band, tail) = rest.split_at_mut((ends[k + 1] - ends[k]) * pw);
+        pieces.push(band);
+        rest = tail;
+    }
     let off = offsets(pw);
+    let parts = &mut s.bands;
     workers.install(|| {
-        s.labels[pw..(h + 1) * pw]
-            .par_chunks_mut(per * pw)
-            .zip(s.bands.par_iter_mut())
+        pieces
+            .into_par_iter()
+            .zip(parts.par_iter_mut())
             .enumerate()
-            .for_each(|(k, (labels, part))| {
-                labels.fill(0);
+            .for_each(|(k, (rows, part))| {
                 part.points.clear();
                 part.list.clear();
-                let y0 = 1 + k * per;
-                let mut band = Band {
-                    bin,
-                    labels,
-                    lo: y0 * pw,
-                    min_visited: usize::MAX,
-                    min_swept: usize::MAX,
-                };
-                let rows = y0..(y0 + per).min(h + 1);
-                scan(&mut band, pw, rows, |b, i| {
+                let lo = ends[k] * pw;
+                let band = Band { lo, copy, above: 0 };
+                scan(&band, rows, pw, ends[k]..ends[k + 1], |own, i| {
                     // Most pixels tested are not on an edge: the test is
                     // made here, inline, before the call.
-                    let (v, west, east) = (bin[i], bin[i - 1], bin[i + 1]);
+                    let &[west, v, east] = &own[i - lo - 1..=i - lo + 1] else {
+                        return;
+                    };
                     if v != 0 && (west == 0 || east == 0) {
-                        start_in_band(b, pw, i, &off, min_len, max_len, part);
+                        start_in_band(&band, own, pw, i, &off, min_len, max_len, part);
                     }
                 });
             });
     });
-    for part in &s.bands {
+    // The first band's borders become the list; the others' are appended.
+    std::mem::swap(out, &mut s.bands[0]);
+    for part in &s.bands[1..] {
         let shift = out.points.len() as u32;
         out.points.extend_from_slice(&part.points);
         out.list.extend(part.list.iter().map(|c| {
@@ -198,9 +208,12 @@ fn follow_bands<W: Default + Send>(
 
 /// The band's step 1 at pixel `i`, a foreground pixel next to background
 /// (see the module documentation): an outer border, if the pixel starts
-/// one, else a hole border.
+/// one, else a hole border. Its left and right neighbours are in the band
+/// (the padded image's border columns are background).
+#[allow(clippy::too_many_arguments)]
 fn start_in_band(
-    b: &mut Band<'_>,
+    b: &Band<'_>,
+    own: &mut [u8],
     pw: usize,
     i: usize,
     off: &[isize; 8],
@@ -208,31 +221,34 @@ fn start_in_band(
     max_len: usize,
     out: &mut Contours,
 ) {
-    if b.label(i) == 0 && b.bin[i - 1] == 0 {
+    let at = i - b.lo;
+    if own[at] == 1 && own[at - 1] == 0 {
         let outer = Border {
             start: i,
             from: WEST,
             hole: false,
         };
-        if follow_if_own(b, pw, outer, off, min_len, max_len, out) {
+        if follow_if_own(b, own, pw, outer, off, min_len, max_len, out) {
             return;
         }
     }
-    if b.label(i) != 3 && b.bin[i + 1] == 0 {
+    if own[at] != 3 && own[at + 1] == 0 {
         let hole = Border {
             start: i,
             from: EAST,
             hole: true,
         };
-        follow_if_own(b, pw, hole, off, min_len, max_len, out);
+        follow_if_own(b, own, pw, hole, off, min_len, max_len, out);
     }
 }
 
 /// Follows `border`, labelling it in the band, and keeps it in `out` (as
 /// [`follow`] does) only if it starts at its start pixel in the one scan
 /// over the whole image; returns whether it does.
+#[allow(clippy::too_many_arguments)]
 fn follow_if_own(
-    b: &mut Band<'_>,
+    b: &Band<'_>,
+    own: &mut [u8],
     pw: usize,
     border: Border,
     off: &[isize; 8],
@@ -240,20 +256,23 @@ fn follow_if_own(
     max_len: usize,
     out: &mut Contours,
 ) -> bool {
-    b.min_visited = usize::MAX;
-    b.min_swept = usize::MAX;
     let (points, list) = (out.points.len(), out.list.len());
-    follow(b, pw, border, off, min_len, max_len, out);
-    let own = if border.hole {
-        b.min_swept == border.start + 1
-    } else {
-        b.min_visited == border.start
+    // An outer border starting in the band stays in the band and below; a
+    // hole border reaches at most one row above.
+    let view = Band {
+        above: if border.hole {
+            b.lo.saturating_sub(pw)
+        } else {
+            b.lo
+        },
+        ..*b
     };
-    if !own {
+    let own_border = !follow(&view, own, pw, border, off, min_len, max_len, out);
+    if !own_border {
         out.points.truncate(points);
         out.list.truncate(list);
     }
-    own
+    own_border
 }
 
 #[cfg(test)]
@@ -267,6 +286,7 @@ mod tests {
         let (mut want, mut got) = (Contours::default(), Contours::default());
         let mut g = f.to_vec();
         contours::find_contours(&mut g, pw, ph, 1, usize::MAX, &mut want);
+        let mut g = Vec::new();
         let kinds = |c: &Contours| -> Vec<(u32, u32, bool)> {
             c.list.iter().map(|c| (c.start, c.len, c.hole)).collect()
         };
@@ -275,7 +295,9 @@ mod tests {
         let h = ph - 2;
         for bands in [1, 2, 3, 7, h / 5, h / 2, h] {
             let size = Size { pw, ph, bands };
-            follow_bands(f, size, 1, usize::MAX, &w, s, &mut got);
+            g.clear();
+            g.extend_from_slice(f);
+            follow_bands(&mut g, f, size, 1, usize::MAX, &w, s, &mut got);
             assert_eq!(got.points, want.points, "{what}, {bands} bands");
             assert_eq!(kinds(&got), kinds(&want), "{what}, {bands} bands");
         }

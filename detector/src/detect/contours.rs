@@ -80,8 +80,8 @@ pub(crate) fn find_contours(
         return;
     }
     let off = offsets(pw);
-    scan(&mut InPlace(f), pw, 1..ph - 1, |l, i| {
-        start_border(l.0, pw, i, &off, min_len, max_len, out);
+    scan(&InPlace, f, pw, 1..ph - 1, |f, i| {
+        start_border(f, pw, i, &off, min_len, max_len, out);
     });
 }
 
@@ -92,13 +92,15 @@ pub(super) fn offsets(pw: usize) -> [isize; 8] {
 }
 
 /// Suzuki & Abe's raster scan over the padded rows `rows` of an image of
-/// row length `pw`: calls `start(l, i)` on each pixel `i` that may start
-/// a border, in raster order, passing over runs of pixels that cannot.
+/// row length `pw`, labelled in `own` (see [`Labels`]): calls
+/// `start(own, i)` on each pixel `i` that may start a border, in raster
+/// order, passing over runs of pixels that cannot.
 pub(super) fn scan<L: Labels>(
-    l: &mut L,
+    l: &L,
+    own: &mut [u8],
     pw: usize,
     rows: std::ops::Range<usize>,
-    mut start: impl FnMut(&mut L, usize),
+    mut start: impl FnMut(&mut [u8], usize),
 ) {
     for y in rows {
         let row = y * pw;
@@ -107,9 +109,9 @@ pub(super) fn scan<L: Labels>(
             // Pixels [x, end) are passed over at once, or tested one by
             // one when they hold an edge.
             let end = (x + SKIP_BLOCK).min(pw - 1);
-            if end < x + SKIP_BLOCK || !l.block(row + x - 1).is_some_and(uniform) {
+            if end < x + SKIP_BLOCK || !l.block(own, row + x - 1).is_some_and(uniform) {
                 for i in row + x..row + end {
-                    start(l, i);
+                    start(own, i);
                 }
             }
             x = end;
@@ -144,7 +146,7 @@ fn start_border(
             from,
             hole,
         };
-        follow(&mut InPlace(f), pw, border, off, min_len, max_len, out);
+        follow(&InPlace, f, pw, border, off, min_len, max_len, out);
     }
 }
 
@@ -172,51 +174,49 @@ pub(super) fn uniform(s: &[u8; SKIP_BLOCK + 2]) -> bool {
     zeros == 0 || usize::from(zeros) == s.len()
 }
 
-/// What border following reads and writes of the image: whether a pixel
-/// is foreground, and the labels of Suzuki & Abe's step 3.4. The
-/// sequential scan keeps the labels in the binary image itself
-/// ([`InPlace`]); the banded scan (`contour_bands`) reads a shared binary
-/// image and keeps its labels apart.
+/// How border following reads and labels the image: whether a pixel is
+/// foreground, and the labels of Suzuki & Abe's step 3.4, kept in a byte
+/// buffer `own` passed alongside (its own argument, so that the compiler
+/// knows the labels written are not the view's fields). The sequential
+/// scan labels the binary image itself ([`InPlace`]); the banded scan
+/// (`contour_bands`) labels a band's rows and reads the rest elsewhere.
 pub(super) trait Labels {
     /// Whether pixel `i` is foreground.
-    fn fg(&self, i: usize) -> bool;
-    /// The [`SKIP_BLOCK`] + 2 pixels from `i` on, if the image holds them
+    fn fg(&self, own: &[u8], i: usize) -> bool;
+    /// The [`SKIP_BLOCK`] + 2 pixels from `i` on, if `own` holds them
     /// (zero and non-zero bytes for background and foreground).
-    fn block(&self, i: usize) -> Option<&[u8; SKIP_BLOCK + 2]>;
+    fn block<'a>(&self, own: &'a [u8], i: usize) -> Option<&'a [u8; SKIP_BLOCK + 2]>;
     /// Step 3.4 at pixel `i` of the border: labelled as followed, and as
-    /// followed with background on its right when `east_zero`.
-    fn visit(&mut self, i: usize, east_zero: bool);
-    /// Background pixel `i` was examined by step 3.3 (around a pixel of
-    /// the border): it lies in the background region the border bounds.
-    fn swept(&mut self, i: usize);
+    /// followed with background on its right when `east_zero`. Returns
+    /// whether the pixel tells that the border does not start where it
+    /// was taken up (never, for the sequential scan).
+    fn visit(&self, own: &mut [u8], i: usize, east_zero: bool) -> bool;
 }
 
-/// The labels kept in the binary image itself (the values of the module
-/// documentation).
-pub(super) struct InPlace<'a>(pub &'a mut [u8]);
+/// The labels kept in the binary image itself, `own` (the values of the
+/// module documentation).
+pub(super) struct InPlace;
 
-impl Labels for InPlace<'_> {
+impl Labels for InPlace {
     #[inline(always)]
-    fn fg(&self, i: usize) -> bool {
-        self.0[i] != 0
+    fn fg(&self, own: &[u8], i: usize) -> bool {
+        own[i] != 0
     }
 
     #[inline(always)]
-    fn block(&self, i: usize) -> Option<&[u8; SKIP_BLOCK + 2]> {
-        self.0[i..].first_chunk()
+    fn block<'a>(&self, own: &'a [u8], i: usize) -> Option<&'a [u8; SKIP_BLOCK + 2]> {
+        own[i..].first_chunk()
     }
 
     #[inline(always)]
-    fn visit(&mut self, i: usize, east_zero: bool) {
+    fn visit(&self, own: &mut [u8], i: usize, east_zero: bool) -> bool {
         if east_zero {
-            self.0[i] = 3;
-        } else if self.0[i] == 1 {
-            self.0[i] = 2;
+            own[i] = 3;
+        } else if own[i] == 1 {
+            own[i] = 2;
         }
+        false
     }
-
-    #[inline(always)]
-    fn swept(&mut self, _: usize) {}
 }
 
 /// Where a border is followed from: its start pixel (padded index), the
@@ -230,11 +230,14 @@ pub(super) struct Border {
 }
 
 /// Follows `b` (Suzuki & Abe's steps 3.1 to 3.5) in the padded image of
-/// row length `pw`, labelling its pixels in `l`. Stores it in `out` (in
-/// unpadded coordinates) when it has at least `min_len` and at most
-/// `max_len` points; returns whether it was stored.
+/// row length `pw`, labelling its pixels in `own` through `l`. Stores it
+/// in `out` (in unpadded coordinates) when it has at least `min_len` and
+/// at most `max_len` points. Returns whether a pixel of the border told
+/// that it does not start at `b.start` ([`Labels::visit`]).
+#[allow(clippy::too_many_arguments)]
 pub(super) fn follow<L: Labels>(
-    l: &mut L,
+    l: &L,
+    own: &mut [u8],
     pw: usize,
     b: Border,
     off: &[isize; 8],
@@ -252,19 +255,19 @@ pub(super) fn follow<L: Labels>(
     let mut i1 = None;
     for s in 0..8 {
         let k = (from + s) % 8;
-        if l.fg(at(start, k)) {
+        if l.fg(own, at(start, k)) {
             i1 = Some((at(start, k), k));
             break;
         }
     }
     let Some((i1, _)) = i1 else {
         // Isolated pixel.
-        l.visit(start, true);
-        return false;
+        return l.visit(own, start, true);
     };
     // 3.2
     let (mut i2, mut i3) = (i1, start);
     let mut stored = true;
+    let mut elsewhere = false;
     loop {
         if stored {
             if out.points.len() - first >= max_len {
@@ -282,17 +285,16 @@ pub(super) fn follow<L: Labels>(
         for _ in 0..8 {
             k = (k + 7) % 8;
             let n = at(i3, k);
-            if l.fg(n) {
+            if l.fg(own, n) {
                 i4 = n;
                 break;
             }
-            l.swept(n);
             if k == EAST {
                 east_zero = true;
             }
         }
         // 3.4
-        l.visit(i3, east_zero);
+        elsewhere |= l.visit(own, i3, east_zero);
         // 3.5
         if i4 == start && i3 == i1 {
             break;
@@ -303,14 +305,14 @@ pub(super) fn follow<L: Labels>(
     let len = out.points.len() - first;
     if !stored || len < min_len {
         out.points.truncate(first);
-        return false;
+        return elsewhere;
     }
     out.list.push(Contour {
         start: first as u32,
         len: len as u32,
         hole,
     });
-    true
+    elsewhere
 }
 
 /// Direction index from pixel `a` to its 8-neighbour `b`.
@@ -429,7 +431,7 @@ mod tests {
                     from,
                     hole,
                 };
-                follow(&mut InPlace(f), pw, b, &off, 1, usize::MAX, out);
+                follow(&InPlace, f, pw, b, &off, 1, usize::MAX, out);
             }
         }
     }

@@ -98,9 +98,13 @@ pub(crate) fn decode_candidates(
     p: &DecodingParams,
     scratch: &mut RefineScratch,
 ) -> (Vec<Found>, usize) {
-    decode_in_order(candidates, scale, p, |j, centre, _| {
-        outcome(img, &candidates[j], scale, centre, targets, p, scratch)
-    })
+    decode_in_order(
+        candidates,
+        scale,
+        p,
+        |j, centre| outcome(img, &candidates[j], scale, centre, targets, p, scratch),
+        |_, _| {},
+    )
 }
 
 /// What decoding a candidate came to: refused by [`plainly_not_a_tag`]
@@ -304,14 +308,16 @@ pub(super) fn plan(
 
 /// The sequential decoding loop: each candidate in turn skipped
 /// ([`plan`]) or decoded, the [`Outcome`] of candidate `j` (centroid
-/// `centre`, the tags found so far `found`) from `outcome`; a refused
-/// rival counts as one that did not read. Returns the tags and the number
-/// of candidates read.
+/// `centre`) from `outcome`; a refused rival counts as one that did not
+/// read. `taken(j, found)` sees the tags found so far after each outcome
+/// was taken into them. Returns the tags and the number of candidates
+/// read.
 pub(super) fn decode_in_order(
     candidates: &[Candidate],
     scale: f64,
     p: &DecodingParams,
-    mut outcome: impl FnMut(usize, [f64; 2], &[Found]) -> Outcome,
+    mut outcome: impl FnMut(usize, [f64; 2]) -> Outcome,
+    mut taken: impl FnMut(usize, &[Found]),
 ) -> (Vec<Found>, usize) {
     let mut found: Vec<Found> = Vec::new();
     let mut attempts = 0;
@@ -323,37 +329,41 @@ pub(super) fn decode_in_order(
         let Some(rival) = plan(cand, centre, &found, p) else {
             continue;
         };
-        let best = match outcome(j, centre, &found) {
-            Outcome::Refused => {
-                // A refused rival counts as one that did not read.
-                if let Some(r) = rival {
-                    found[r].rivals += 1;
-                }
-                continue;
+        match (rival, outcome(j, centre)) {
+            // A refused rival counts as one that did not read.
+            (Some(r), Outcome::Refused) => found[r].rivals += 1,
+            (None, Outcome::Refused) => {}
+            (rival, Outcome::Read(best)) => {
+                attempts += 1;
+                take_reading(&mut found, rival, best.map(|b| *b));
             }
-            Outcome::Read(best) => best.map(|b| *b),
-        };
-        attempts += 1;
-        match (rival, best) {
-            (Some(r), Some(b)) => {
-                let f = &mut found[r];
-                f.rivals += 1;
-                // Only a reading of the same tag competes; a different
-                // id inside a found tag is not trusted over it.
-                let same = b.det.family == f.reading.det.family && b.det.id == f.reading.det.id;
-                if same && b.beats(&f.reading) {
-                    f.reading = b;
-                }
-            }
-            (Some(r), None) => found[r].rivals += 1,
-            (None, Some(b)) => found.push(Found {
-                reading: b,
-                rivals: 0,
-            }),
-            (None, None) => {}
         }
+        taken(j, &found);
     }
     (found, attempts)
+}
+
+/// Takes a candidate's reading `best` into the tags `found`: a rival of
+/// tag `rival` if it lies inside one, else perhaps a new tag.
+fn take_reading(found: &mut Vec<Found>, rival: Option<usize>, best: Option<Reading>) {
+    match (rival, best) {
+        (Some(r), Some(b)) => {
+            let f = &mut found[r];
+            f.rivals += 1;
+            // Only a reading of the same tag competes; a different
+            // id inside a found tag is not trusted over it.
+            let same = b.det.family == f.reading.det.family && b.det.id == f.reading.det.id;
+            if same && b.beats(&f.reading) {
+                f.reading = b;
+            }
+        }
+        (Some(r), None) => found[r].rivals += 1,
+        (None, Some(b)) => found.push(Found {
+            reading: b,
+            rivals: 0,
+        }),
+        (None, None) => {}
+    }
 }
 
 /// Cells across the data grid of the finest family detected.
@@ -427,22 +437,31 @@ const UNFIT_MARGIN: usize = 2;
 /// larger quad may still contain an earlier one: of two detections of
 /// which one contains the other's centre, the better reading stays.
 pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
-    let mut kept: Vec<Reading> = Vec::with_capacity(found.len());
-    for Found { reading: r, .. } in found {
+    one_per_tag_indexed(found)
+        .into_iter()
+        .map(|(_, d)| d)
+        .collect()
+}
+
+/// [`one_per_tag`], each detection with the index in `found` of the
+/// reading it is.
+pub(crate) fn one_per_tag_indexed(found: Vec<Found>) -> Vec<(usize, Detection)> {
+    let mut kept: Vec<(usize, Reading)> = Vec::with_capacity(found.len());
+    for (i, Found { reading: r, .. }) in found.into_iter().enumerate() {
         let d = &r.det;
         if let Some(o) = kept
             .iter_mut()
-            .find(|o| inside(&o.det.corners, d.center) || inside(&d.corners, o.det.center))
+            .find(|(_, o)| inside(&o.det.corners, d.center) || inside(&d.corners, o.det.center))
         {
-            if r.beats(o) {
-                *o = r;
+            if r.beats(&o.1) {
+                *o = (i, r);
             }
         } else {
-            kept.push(r);
+            kept.push((i, r));
         }
     }
-    let mut out: Vec<Detection> = kept.into_iter().map(|r| r.det).collect();
-    out.sort_by(|a, b| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
+    let mut out: Vec<(usize, Detection)> = kept.into_iter().map(|(i, r)| (i, r.det)).collect();
+    out.sort_by(|(_, a), (_, b)| a.family.cmp(&b.family).then(a.id.cmp(&b.id)));
     out
 }
 
@@ -480,20 +499,54 @@ pub(crate) fn verify_all(
         .collect()
 }
 
+/// The verification of each tag found so far ([`verify_all`]), ahead of
+/// [`one_per_tag`], on the current thread pool: the fit is a pure function
+/// of the image and the reading, and nearly every tag found is one the
+/// frame reports, so the fits can run beside other work (the small-tag
+/// regions) and be taken up by [`verify_all_par`].
+pub(crate) fn verify_ahead(
+    img: &GrayView<'_>,
+    found: &[Found],
+    targets: &[Target],
+    p: &DecodingParams,
+) -> Vec<Option<Detection>> {
+    found
+        .par_iter()
+        .map(|f| verify_one(img, f.reading.det.clone(), targets, p))
+        .collect()
+}
+
 /// [`verify_all`] on `workers`' threads, one detection per task (each
 /// fit is a pure function of the image and the detection), in the same
-/// order.
+/// order, of the detections of [`one_per_tag_indexed`]: those whose
+/// reading's index has a fit in `ahead` ([`verify_ahead`]) take it.
 pub(crate) fn verify_all_par<W: Default + Send>(
     img: &GrayView<'_>,
-    found: Vec<Detection>,
+    found: Vec<(usize, Detection)>,
+    ahead: Vec<Option<Detection>>,
     targets: &[Target],
     p: &DecodingParams,
     workers: &Workers<W>,
 ) -> Vec<Detection> {
+    /// A detection's fit, made ahead, or the detection to fit.
+    enum Fit {
+        Made(Option<Detection>),
+        ToMake(Detection),
+    }
+    let mut ahead: Vec<Option<Option<Detection>>> = ahead.into_iter().map(Some).collect();
+    let fits: Vec<Fit> = found
+        .into_iter()
+        .map(|(i, d)| match ahead.get_mut(i).and_then(Option::take) {
+            Some(made) => Fit::Made(made),
+            None => Fit::ToMake(d),
+        })
+        .collect();
     let kept: Vec<Option<Detection>> = workers.install(|| {
-        found
-            .into_par_iter()
-            .map(|d| verify_one(img, d, targets, p))
+        fits.into_par_iter()
+            .map(|f| match f {
+                Fit::Made(made) => made,
+                Fit::ToMake(d) => verify_one(img, d, targets, p),
+            })
             .collect()
     });
     kept.into_iter().flatten().collect()

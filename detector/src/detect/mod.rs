@@ -137,11 +137,15 @@ pub struct StageTimes {
     pub decode: Duration,
     /// The full-resolution second look around small disc rims (its own
     /// segmentation, refinement and decoding; see
-    /// [`DetectorConfig::small_tags`]).
+    /// [`DetectorConfig::small_tags`]). With worker threads
+    /// ([`DetectorConfig::threads`]) it also holds most of the model fits
+    /// of [`StageTimes::verify`]: the tags found before it are fitted
+    /// beside it.
     pub small: Duration,
     /// One detection per tag, sorted.
     pub dedup: Duration,
-    /// Model fit of each detection.
+    /// Model fit of each detection (with worker threads, of those the
+    /// fits made beside [`StageTimes::small`] did not cover).
     pub verify: Duration,
     /// Whole frame.
     pub total: Duration,
@@ -272,6 +276,9 @@ struct Workspace {
 struct Segmentation {
     tscratch: threshold::ThresholdScratch,
     binary: Vec<u8>,
+    /// `binary` as thresholded, when stage 2 runs in bands: they label
+    /// their rows of `binary` and read the rest here.
+    copy: Vec<u8>,
     bscratch: contour_bands::BandScratch,
     contours: contours::Contours,
     polys: lines::Polygons,
@@ -308,7 +315,7 @@ impl Segmentation {
         let mut laps = Laps(Instant::now());
         let work = match workers {
             None => threshold::threshold(img, &p.threshold, &mut self.tscratch, &mut self.binary),
-            Some(w) => threshold_bands(img, &p.threshold, w, &mut self.binary),
+            Some(w) => threshold_bands(img, &p.threshold, w, &mut self.binary, &mut self.copy),
         };
         times.threshold += laps.lap();
         let (ww, wh) = (work.width, work.height);
@@ -324,7 +331,8 @@ impl Segmentation {
                 &mut self.contours,
             ),
             Some(w) => contour_bands::find_contours(
-                &self.binary,
+                &mut self.binary,
+                &self.copy,
                 pw,
                 ph,
                 min_len,
@@ -375,12 +383,15 @@ impl Segmentation {
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
 /// threads, each with the buffers of the thread it runs on; the same bytes
-/// as one pass.
+/// as one pass. Each band also copies its rows into `copy`, while they are
+/// in its cache: stage 2's bands (`contour_bands`) read the image as
+/// thresholded there.
 fn threshold_bands(
     img: &GrayView<'_>,
     p: &threshold::ThresholdParams,
     workers: &Workers<Workspace>,
     out: &mut Vec<u8>,
+    copy: &mut Vec<u8>,
 ) -> threshold::Working {
     let work = threshold::working(img, p);
     let (w, h) = (work.width, work.height);
@@ -389,14 +400,20 @@ fn threshold_bands(
         .min(h / MIN_BAND_ROWS)
         .max(1);
     let per = h.div_ceil(bands).max(1);
+    let pw = w + 2;
+    copy.resize(pw * (h + 2), 0);
+    copy[..pw].fill(0);
+    copy[(h + 1) * pw..].fill(0);
     workers.install(|| {
-        rows.par_chunks_mut(per * (w + 2))
+        rows.par_chunks_mut(per * pw)
+            .zip(copy[pw..(h + 1) * pw].par_chunks_mut(per * pw))
             .enumerate()
-            .for_each(|(k, band)| {
+            .for_each(|(k, (band, copy))| {
                 let y0 = k * per;
                 let mut ws = workers.scratch();
                 let rows = y0..(y0 + per).min(h);
                 threshold::threshold_rows(img, p, &work, rows, &mut ws.seg.tscratch, band);
+                copy.copy_from_slice(band);
             });
     });
     work
@@ -548,12 +565,16 @@ impl Detector {
         // stealing, where each step entered from outside the pool would
         // wait for a pool thread to wake up and for the caller to be woken
         // again (tens of microseconds each, and a frame has dozens of
-        // steps). Taken out of `self` for the call; a panic in a stage
-        // leaves the detector without its pool (one thread), not broken.
+        // steps). The other threads stay awake for the frame: asleep, they
+        // would be woken for each parallel step after a sequential one
+        // (50 to 200 microseconds on the benchmark's virtual machine, a
+        // tenth of a 4K frame in all). Taken out of `self` for the call; a
+        // panic in a stage leaves the detector without its pool (one
+        // thread), not broken.
         let workers = self.workers.take();
         let out = match &workers {
             None => self.detect_on(img, None),
-            Some(w) => w.install(|| self.detect_on(img, Some(w))),
+            Some(w) => w.install_awake(|| self.detect_on(img, Some(w))),
         };
         self.workers = workers;
         out
@@ -610,6 +631,9 @@ impl Detector {
             ),
         };
         st.times.decode = laps.lap();
+        // With worker threads, the fits of the tags found so far, made
+        // beside the small-tag regions (see `decoding::verify_ahead`).
+        let mut ahead = Vec::new();
         if self.config.small_tags && scale > 1.0 {
             let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
             let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
@@ -634,14 +658,22 @@ impl Detector {
                     // decoded more than were left after the regions
                     // before it is looked at again with what was left (a
                     // run with a smaller budget is the larger one's,
-                    // stopped early).
+                    // stopped early). The tags found so far are fitted
+                    // meanwhile, the threads taking regions and fits as
+                    // they come free.
                     let left = p.decoding.max_attempts.saturating_sub(attempts);
-                    let runs: Vec<_> = w.install(|| {
-                        regions
-                            .par_iter()
-                            .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
-                            .collect()
+                    let (runs, fits): (Vec<_>, _) = w.install(|| {
+                        rayon::join(
+                            || {
+                                regions
+                                    .par_iter()
+                                    .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
+                                    .collect()
+                            },
+                            || decoding::verify_ahead(&img, &found, &self.targets, &p.decoding),
+                        )
                     });
+                    ahead = fits;
                     for (r, (more, n)) in regions.iter().zip(runs) {
                         let budget = p.decoding.max_attempts.saturating_sub(attempts);
                         let (more, n) = if n <= budget {
@@ -656,11 +688,17 @@ impl Detector {
             }
             st.times.small = laps.lap();
         }
-        let out = decoding::one_per_tag(found);
-        st.times.dedup = laps.lap();
         let out = match workers {
-            None => decoding::verify_all(&img, out, &self.targets, &p.decoding),
-            Some(w) => decoding::verify_all_par(&img, out, &self.targets, &p.decoding, w),
+            None => {
+                let out = decoding::one_per_tag(found);
+                st.times.dedup = laps.lap();
+                decoding::verify_all(&img, out, &self.targets, &p.decoding)
+            }
+            Some(w) => {
+                let out = decoding::one_per_tag_indexed(found);
+                st.times.dedup = laps.lap();
+                decoding::verify_all_par(&img, out, ahead, &self.targets, &p.decoding, w)
+            }
         };
         st.times.verify = laps.lap();
         st.decode_attempts = attempts;

@@ -16,6 +16,7 @@
 //! every stage runs its sequential code as before.
 
 use std::ops::Range;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
 
 use rayon::prelude::*;
@@ -64,6 +65,30 @@ impl<S: Default + Send> Workers<S> {
     /// use the pool's threads).
     pub(crate) fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         self.pool.install(f)
+    }
+
+    /// [`Workers::install`], with the pool's other threads looking for
+    /// work without pause until `f` returns, instead of going to sleep
+    /// whenever `f` runs a sequential step.
+    pub(crate) fn install_awake<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        let done = AtomicBool::new(false);
+        self.pool.install(|| {
+            rayon::scope(|s| {
+                for _ in 1..self.threads() {
+                    s.spawn(|_| stay_awake(&done));
+                }
+                // Set even when `f` panics: the scope waits for the
+                // threads kept awake.
+                struct Done<'a>(&'a AtomicBool);
+                impl Drop for Done<'_> {
+                    fn drop(&mut self) {
+                        self.0.store(true, Ordering::Release);
+                    }
+                }
+                let _done = Done(&done);
+                f()
+            })
+        })
     }
 
     /// The buffers of the current pool thread. Called from inside
@@ -129,6 +154,16 @@ impl<S: Default + Send> Workers<S> {
         }
         cuts.push(n);
         self.install(|| cuts.par_windows(2).map(|c| f(c[0]..c[1])).collect())
+    }
+}
+
+/// A pool thread's loop while [`Workers::install_awake`] runs: take and run
+/// the pool's pending work, yielding to the system between, until `done`.
+fn stay_awake(done: &AtomicBool) {
+    while !done.load(Ordering::Acquire) {
+        if rayon::yield_now() != Some(rayon::Yield::Executed) {
+            std::thread::yield_now();
+        }
     }
 }
 
@@ -204,6 +239,42 @@ pub(crate) fn collect_ranges_with<T: Send, S: Default, W: Default + Send>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn awake_pools_run_nested_work_and_end() {
+        for threads in [2, 3] {
+            let w = Workers::<()>::new(threads).unwrap();
+            for _ in 0..20 {
+                // Parallel steps between sequential ones, and a scope whose
+                // tasks wait for the caller, as the decoding's read-ahead.
+                let sum = w.install_awake(|| {
+                    let a: u64 = (0..10_000u64).into_par_iter().sum();
+                    let go = std::sync::Mutex::new(false);
+                    let cv = std::sync::Condvar::new();
+                    rayon::scope(|s| {
+                        for _ in 1..threads {
+                            s.spawn(|_| {
+                                let mut g = go.lock().unwrap();
+                                while !*g {
+                                    g = cv.wait(g).unwrap();
+                                }
+                            });
+                        }
+                        *go.lock().unwrap() = true;
+                        cv.notify_all();
+                    });
+                    a + w.map_ranges(100, 1, |r| r.len() as u64).iter().sum::<u64>()
+                });
+                assert_eq!(sum, 49_995_000 + 100);
+            }
+            // A panic in `f` reaches the caller; the pool stays usable.
+            let r = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                w.install_awake(|| panic!("stage failed"))
+            }));
+            assert!(r.is_err());
+            assert_eq!(w.install_awake(|| 7), 7);
+        }
+    }
 
     #[test]
     fn weighted_ranges_cover_the_list_in_order() {

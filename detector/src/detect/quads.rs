@@ -159,6 +159,10 @@ const MIN_LINKED_REAL: usize = 2;
 /// a rotation, are one.
 const DUPLICATE_TOL: f64 = 1.5;
 
+/// Fewest borders in one piece of the parallel search on each border
+/// alone (most borders of a cluttered frame have a handful of corners).
+const MIN_BORDERS_PER_PIECE: usize = 64;
+
 /// Fewest ellipses in one piece of the parallel search around ellipses
 /// (each looks at every corner of the frame).
 const MIN_ELLIPSES_PER_PIECE: usize = 4;
@@ -171,6 +175,8 @@ const MIN_CANDIDATES_PER_PIECE: usize = 16;
 #[derive(Debug, Default)]
 pub(crate) struct QuadScratch {
     group: Vec<u32>,
+    /// The runs of corners (`start..end`) of the borders searched alone.
+    borders: Vec<(u32, u32)>,
     linked: Vec<u32>,
     /// The runs of `linked` searched as one group each.
     runs: Vec<Range<usize>>,
@@ -418,7 +424,10 @@ pub(crate) fn find_candidates<W: Default + Send>(
     // The gap corners (after `plain`) only join the linked pass: elsewhere
     // they would pair every computed point with the rest.
     let corners = &all_corners[..plain];
-    // Per border (corners are stored border by border).
+    // Per border (corners are stored border by border), the borders in
+    // pieces on `workers`' threads.
+    let mut borders = std::mem::take(&mut s.borders);
+    borders.clear();
     let mut i = 0;
     while i < corners.len() {
         let mut j = i + 1;
@@ -426,14 +435,28 @@ pub(crate) fn find_candidates<W: Default + Send>(
             j += 1;
         }
         if j - i >= MIN_BORDER_CORNERS {
-            let mut group = std::mem::take(&mut s.group);
-            group.clear();
-            group.extend(i as u32..j as u32);
-            search_group(corners, &group, None, None, p, s, out);
-            s.group = group;
+            borders.push((i as u32, j as u32));
         }
         i = j;
     }
+    collect_ranges_with(
+        workers,
+        borders.len(),
+        MIN_BORDERS_PER_PIECE,
+        s,
+        out,
+        |r, s, out| {
+            let mut group = std::mem::take(&mut s.group);
+            for &(i, j) in &borders[r] {
+                group.clear();
+                group.extend(i..j);
+                search_group(corners, &group, None, None, p, s, out);
+            }
+            s.group = group;
+        },
+    );
+    out.truncate(p.max_candidates);
+    s.borders = borders;
     // Around each ellipse.
     let n = ellipses.len();
     collect_ranges_with(workers, n, MIN_ELLIPSES_PER_PIECE, s, out, |r, s, out| {

@@ -10,17 +10,19 @@
 //! loop's result is the one-thread result whatever was read ahead, by
 //! whom and when.
 //!
-//! Each thread takes the next candidate the tags found so far would not
-//! skip, as long as fewer than [`AHEAD_PER_THREAD`] per thread are taken
-//! or read past the one the loop is at (and no more than the attempts
-//! left), reads it and leaves the outcome for the loop. The loop takes the
-//! outcome of each candidate it decodes: ready, or read by itself if no
-//! thread took it; while another thread is reading it, the loop reads
-//! ahead too rather than wait. There is no barrier: a thread waits only
-//! when the candidates ahead are all taken. A reading ahead is in vain
-//! when a tag found meanwhile makes the loop skip its candidate; those
-//! are few, since candidates over one tag are seldom next to each other in
-//! the order.
+//! Each thread takes the next candidate that the tags found so far would
+//! not skip, as long as fewer than [`AHEAD_PER_THREAD`] per thread are
+//! taken or read from the one the loop is at on (and no more than the
+//! attempts left), reads it and leaves the outcome for the loop. The loop
+//! takes the outcome of each candidate it decodes: ready, or read by
+//! itself if no thread took it; while another thread is reading it, the
+//! loop reads ahead too rather than wait. There is no barrier: a thread
+//! waits only when the candidates ahead are all taken, or when the loop
+//! is about to take a ready outcome (which may find a tag that makes it
+//! skip what the thread would read). A reading ahead is in vain when a
+//! tag found meanwhile makes the loop skip its candidate, and it costs
+//! time when the loop has finished before it: the last readings are
+//! waited for.
 
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
@@ -35,7 +37,11 @@ use crate::view::GrayView;
 /// Most candidates taken or read ahead of the loop per worker thread:
 /// enough that a thread finds work while the others read slow
 /// candidates, few enough that little is read in vain when a tag found
-/// makes the loop skip candidates read ahead.
+/// makes the loop skip candidates read ahead. The window starts at one
+/// per thread and doubles each time the loop takes an outcome read ahead
+/// with none in vain before it, back to one per thread after one in vain
+/// (candidates over a tag found come in runs): the last readings of a
+/// frame, waited for even when in vain, are then few.
 const AHEAD_PER_THREAD: usize = 4;
 
 /// A candidate's reading ahead.
@@ -57,11 +63,18 @@ struct Ahead {
     slots: Vec<Slot>,
     /// The next candidate to look at for reading ahead.
     next: usize,
-    /// The candidate the loop is at: outcomes of those before it are no
-    /// longer needed.
+    /// The first candidate whose outcome the loop has not taken: those
+    /// before it are no longer needed.
     at: usize,
     /// Most candidates taken or read from `at` on.
     limit: usize,
+    /// The window `limit` is (before the attempts left cap it), and its
+    /// least and most.
+    window: usize,
+    least: usize,
+    most: usize,
+    /// Whether the loop is reading a candidate itself.
+    busy: bool,
     /// The tags the loop has found so far, for skipping candidates ahead.
     found: Vec<Found>,
     /// The loop has finished: threads stop reading ahead.
@@ -69,10 +82,13 @@ struct Ahead {
 }
 
 impl Ahead {
-    /// The next candidate to read ahead, if the limit allows one and one
-    /// is left that the tags found so far would not skip; it is marked
-    /// taken.
+    /// The next candidate to read ahead, if one is left that the tags
+    /// found so far would not skip, the limit allows one and the loop is
+    /// not about to take a ready outcome; it is marked taken.
     fn take(&mut self, wanted: impl Fn(usize, &[Found]) -> bool) -> Option<usize> {
+        if !self.busy && matches!(self.slots.get(self.at), Some(Slot::Done(_))) {
+            return None;
+        }
         self.next = self.next.max(self.at);
         let ahead = self.slots[self.at..self.next]
             .iter()
@@ -150,23 +166,43 @@ impl Shared {
         }
     }
 
-    /// The loop's part: the outcome of candidate `j`, the tags found so
-    /// far `found`, `left` attempts left.
+    /// Runs `read` as the loop's own reading: the threads reading ahead
+    /// know the loop is busy meanwhile.
+    fn busy<R>(&self, read: impl FnOnce() -> R) -> R {
+        struct Idle<'a>(&'a Shared);
+        impl Drop for Idle<'_> {
+            fn drop(&mut self) {
+                self.0.lock().busy = false;
+            }
+        }
+        self.lock().busy = true;
+        self.changed.notify_all();
+        let _idle = Idle(self);
+        read()
+    }
+
+    /// The loop's part: the outcome of candidate `j`, `left` attempts
+    /// left.
     fn outcome_of(
         &self,
         j: usize,
-        found: &[Found],
         left: usize,
-        per_pass: usize,
         wanted: &impl Fn(usize, &[Found]) -> bool,
         read: &impl Fn(usize) -> Outcome,
     ) -> Outcome {
         let mut g = self.lock();
+        // The candidates from `at` to `j` are skipped: any taken or read
+        // was read in vain.
+        let in_vain = g.slots[g.at..j].iter().any(|s| !matches!(s, Slot::Free));
+        g.window = if in_vain {
+            g.least
+        } else if matches!(g.slots[j], Slot::Done(_)) {
+            (2 * g.window).min(g.most)
+        } else {
+            g.window
+        };
         g.at = j;
-        g.limit = per_pass.min(left);
-        g.found.clear();
-        g.found.extend_from_slice(found);
-        self.changed.notify_all();
+        g.limit = g.window.min(left);
         loop {
             match &g.slots[j] {
                 Slot::Done(_) => {
@@ -177,19 +213,32 @@ impl Shared {
                 Slot::Free => {
                     g.slots[j] = Slot::Taken;
                     drop(g);
-                    return read(j);
+                    return self.busy(|| read(j));
                 }
                 // Another thread reads it: read ahead meanwhile.
                 Slot::Taken => match g.take(wanted) {
                     Some(k) => {
                         drop(g);
-                        self.read_into_slot(k, read);
+                        self.busy(|| self.read_into_slot(k, read));
                         g = self.lock();
                     }
                     None => g = self.wait(g),
                 },
             }
         }
+    }
+
+    /// The loop has taken the outcome of candidate `j` into the tags it
+    /// has found, `found`: the threads may read ahead past it, skipping
+    /// the candidates those tags make the loop skip.
+    fn taken(&self, j: usize, found: &[Found]) {
+        let mut g = self.lock();
+        // The loop read it itself or took its outcome out.
+        g.slots[j] = Slot::Free;
+        g.at = j + 1;
+        g.found.clear();
+        g.found.extend_from_slice(found);
+        self.changed.notify_all();
     }
 
     /// Marks the loop finished and wakes the threads waiting for work.
@@ -225,7 +274,7 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
             scratch(&mut w),
         )
     };
-    let per_pass = AHEAD_PER_THREAD * workers.threads();
+    let (least, most) = (workers.threads(), AHEAD_PER_THREAD * workers.threads());
     let shared = Shared {
         ahead: Mutex::new(Ahead {
             slots: std::iter::repeat_with(Slot::default)
@@ -233,7 +282,11 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
                 .collect(),
             next: 0,
             at: 0,
-            limit: per_pass.min(p.max_attempts),
+            limit: least.min(p.max_attempts),
+            window: least,
+            least,
+            most,
+            busy: false,
             found: Vec::new(),
             finished: false,
         }),
@@ -254,12 +307,18 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
             }
             let _finish = Finish(&shared);
             let mut attempts = 0;
-            decode_in_order(candidates, scale, p, |j, _, found| {
-                let left = p.max_attempts.saturating_sub(attempts);
-                let o = shared.outcome_of(j, found, left, per_pass, &wanted, &read);
-                attempts += usize::from(matches!(o, Outcome::Read(_)));
-                o
-            })
+            decode_in_order(
+                candidates,
+                scale,
+                p,
+                |j, _| {
+                    let left = p.max_attempts.saturating_sub(attempts);
+                    let o = shared.outcome_of(j, left, &wanted, &read);
+                    attempts += usize::from(matches!(o, Outcome::Read(_)));
+                    o
+                },
+                |j, found| shared.taken(j, found),
+            )
         })
     })
 }
