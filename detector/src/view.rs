@@ -54,9 +54,8 @@ impl<'a> GrayView<'a> {
         })
     }
 
-    /// A packed buffer the crate made itself (`data.len() == w * h`); the
-    /// tests' images.
-    #[cfg(test)]
+    /// A packed buffer the crate made itself (`data.len() == w * h`): the
+    /// tests' images, the upsampled small-tag regions.
     pub(crate) fn packed(data: &'a [u8], width: usize, height: usize) -> Self {
         debug_assert_eq!(data.len(), width * height);
         Self {

@@ -83,6 +83,12 @@ impl Found {
     pub(crate) fn detection(&self) -> &Detection {
         &self.reading.det
     }
+
+    /// Marks the tag as read in an upsampled small-tag region (see
+    /// [`Detection::upsampled`]).
+    pub(crate) fn mark_upsampled(&mut self) {
+        self.reading.det.upsampled = true;
+    }
 }
 
 /// Refines and decodes `candidates` (best first, working-image coordinates
@@ -415,6 +421,7 @@ fn read(
             corrected: r.corrected,
             likelihood: r.likelihood,
             occluded: r.occluded,
+            upsampled: false,
             center,
             contrast: r.contrast,
             homography: h,
@@ -594,9 +601,14 @@ fn verify_one(
             }
             d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
             // A nearest-codeword reading is judged again on the corners it
-            // ends with (see `occluded_reading_stands`).
+            // ends with (see `occluded_reading_stands`), and so is any
+            // reading of an upsampled small-tag region: such a tag shows
+            // little perspective, and its hidden corners, placed by the fit
+            // of cells 1-2 px wide, were seen off by more than 3 px (on the
+            // sigma calibration set, one of 30 with a hidden corner).
             if d.occluded
                 && (d.corner_sigma.is_none() || !occluded_geometry_stands(&d.corners, d.estimated))
+                || d.upsampled && !occluded_geometry_stands(&d.corners, d.estimated)
             {
                 return None;
             }

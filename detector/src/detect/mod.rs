@@ -105,6 +105,10 @@ pub struct Detection {
     /// strictly).
     #[serde(skip)]
     pub(crate) occluded: bool,
+    /// Read in a small-tag region upsampled 2x (`small`): its hidden
+    /// corners are judged as a nearest-codeword reading's are.
+    #[serde(skip)]
+    pub(crate) upsampled: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).
@@ -269,6 +273,10 @@ impl StageParams {
 struct Workspace {
     seg: Segmentation,
     rscratch: refine::RefineScratch,
+    /// A small-tag region upsampled 2x, and its rows upsampled
+    /// horizontally ([`small::upsample_2x`]).
+    up: Vec<u8>,
+    up_rows: Vec<u16>,
 }
 
 /// The buffers of stages 1-5, from the working image to candidate quads.
@@ -420,8 +428,10 @@ fn threshold_bands(
 }
 
 /// The full-resolution second look in one small-tag region `r` of `img`:
-/// stages 1-5 on the region at full resolution, then its rim's candidates decoded, at most `budget` of them. Returns
-/// the tags found and the candidates decoded.
+/// stages 1-5 on the region at full resolution, then its rim's candidates
+/// decoded, at most `budget` of them; for a rim of a very small tag where
+/// that read nothing, the same on the region upsampled 2x. Returns the
+/// tags found and the candidates decoded.
 fn small_region(
     img: &GrayView<'_>,
     r: &small::Region,
@@ -429,16 +439,47 @@ fn small_region(
     budget: usize,
     ws: &mut Workspace,
 ) -> (Vec<decoding::Found>, usize) {
+    let view = img.crop(r.x0, r.y0, r.w, r.h);
+    let (found, mut n) = small_look(img, &view, r, 1.0, d, budget, ws);
+    if !found.is_empty() || n >= budget || !small::worth_upsampling(img, r) {
+        return (found, n);
+    }
+    // Nothing read at full resolution: once more upsampled 2x (see
+    // `small::UPSAMPLE_BELOW_SIDE_PX`).
+    let (mut rows, mut up) = (std::mem::take(&mut ws.up_rows), std::mem::take(&mut ws.up));
+    let t = r.tight();
+    let (w2, h2) = small::upsample_2x(&img.crop(t.x0, t.y0, t.w, t.h), &mut rows, &mut up);
+    let zoomed = GrayView::packed(&up, w2 as usize, h2 as usize);
+    let (mut found, m) = small_look(img, &zoomed, &t, 2.0, d, budget - n, ws);
+    for f in &mut found {
+        f.mark_upsampled();
+    }
+    n += m;
+    (ws.up_rows, ws.up) = (rows, up);
+    (found, n)
+}
+
+/// Stages 1-5 on `view` (region `r` of `img`, at `zoom` times its
+/// resolution), then the rim's candidates decoded on `img`, at most
+/// `budget`.
+fn small_look(
+    img: &GrayView<'_>,
+    view: &GrayView<'_>,
+    r: &small::Region,
+    zoom: f64,
+    d: &SmallPass<'_>,
+    budget: usize,
+    ws: &mut Workspace,
+) -> (Vec<decoding::Found>, usize) {
     // The regions' own stage times are not split out: they are the
     // `small` stage.
     let mut inner = StageTimes::default();
-    let view = img.crop(r.x0, r.y0, r.w, r.h);
-    ws.seg.run(&view, d.full, None, &mut inner);
+    ws.seg.run(view, d.full, None, &mut inner);
     let shifted: Vec<quads::Candidate> = ws
         .seg
         .candidates
         .iter()
-        .filter_map(|c| small::of_rim(c, r))
+        .filter_map(|c| small::of_rim(c, r, zoom))
         .collect();
     decoding::decode_candidates(
         img,
