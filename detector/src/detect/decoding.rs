@@ -84,11 +84,10 @@ impl Found {
         &self.reading.det
     }
 
-    /// Marks the tag as read in a small-tag region, `upsampled` or not
-    /// (see [`Detection::small_region`], [`Detection::upsampled`]).
-    pub(crate) fn mark_small_region(&mut self, upsampled: bool) {
-        self.reading.det.small_region = true;
-        self.reading.det.upsampled = upsampled;
+    /// Marks the tag as read in an upsampled small-tag region (see
+    /// [`Detection::upsampled`]).
+    pub(crate) fn mark_upsampled(&mut self) {
+        self.reading.det.upsampled = true;
     }
 }
 
@@ -422,7 +421,6 @@ fn read(
             corrected: r.corrected,
             likelihood: r.likelihood,
             occluded: r.occluded,
-            small_region: false,
             upsampled: false,
             center,
             contrast: r.contrast,
@@ -607,16 +605,10 @@ fn verify_one(
             // reading of an upsampled small-tag region: such a tag shows
             // little perspective, and its hidden corners, placed by the fit
             // of cells 1-2 px wide, were seen off by more than 3 px (on the
-            // sigma calibration set, one of 30 with a hidden corner). Any
-            // small-tag region's reading with one hidden corner is held to
-            // the parallelogram too: where an occluder cuts a small tag's
-            // corner, the quad takes its corner where the occluder's edge
-            // meets a side (on the wild set, one such corner 12.6 px off).
-            let one_hidden = d.estimated.iter().filter(|&&e| e).count() == 1;
-            let stands = occluded_geometry_stands(&d.corners, d.estimated);
-            if d.occluded && (d.corner_sigma.is_none() || !stands)
-                || d.upsampled && !stands
-                || d.small_region && one_hidden && !stands
+            // sigma calibration set, one of 30 with a hidden corner).
+            if d.occluded
+                && (d.corner_sigma.is_none() || !occluded_geometry_stands(&d.corners, d.estimated))
+                || d.upsampled && !occluded_geometry_stands(&d.corners, d.estimated)
             {
                 return None;
             }

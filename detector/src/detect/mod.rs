@@ -105,12 +105,8 @@ pub struct Detection {
     /// strictly).
     #[serde(skip)]
     pub(crate) occluded: bool,
-    /// Read in a small-tag region (`small`): a hidden corner must lie
-    /// near the parallelogram of the other three.
-    #[serde(skip)]
-    pub(crate) small_region: bool,
-    /// Read in a small-tag region upsampled 2x: its hidden corners are
-    /// judged as a nearest-codeword reading's are.
+    /// Read in a small-tag region upsampled 2x (`small`): its hidden
+    /// corners are judged as a nearest-codeword reading's are.
     #[serde(skip)]
     pub(crate) upsampled: bool,
     /// Image of the tag center (intersection of the diagonals).
@@ -444,10 +440,7 @@ fn small_region(
     ws: &mut Workspace,
 ) -> (Vec<decoding::Found>, usize) {
     let view = img.crop(r.x0, r.y0, r.w, r.h);
-    let (mut found, mut n) = small_look(img, &view, r, 1.0, d, budget, ws);
-    for f in &mut found {
-        f.mark_small_region(false);
-    }
+    let (found, mut n) = small_look(img, &view, r, 1.0, d, budget, ws);
     if !found.is_empty() || n >= budget || !small::worth_upsampling(img, r) {
         return (found, n);
     }
@@ -459,7 +452,7 @@ fn small_region(
     let zoomed = GrayView::packed(&up, w2 as usize, h2 as usize);
     let (mut found, m) = small_look(img, &zoomed, &t, 2.0, d, budget - n, ws);
     for f in &mut found {
-        f.mark_small_region(true);
+        f.mark_upsampled();
     }
     n += m;
     (ws.up_rows, ws.up) = (rows, up);

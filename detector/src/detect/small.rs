@@ -100,13 +100,9 @@ pub(crate) const MAX_REGIONS: usize = 48;
 const MAX_CENTRE_OFFSET: f64 = 0.5;
 
 /// Longest side (in semi-major axes of the rim) of a candidate taken as
-/// its tag: the data square's side is a / 0.82 = 1.22 a face-on and
-/// shorter under tilt, and the printed square's outline, which `outline`
-/// reads as a tag too, is twice that (2.44 a); 3 a leaves room for a rim
-/// fitted short. (At 1.6 a, which admitted data squares only, the wild
-/// set found 0.5 points fewer: small occluded or blurred tags whose paper
-/// edge alone closed a quad.)
-const MAX_SIDE_PER_AXIS: f64 = 3.0;
+/// its data square: the square's side is a / 0.82 = 1.22 a face-on and
+/// shorter under tilt; 1.6 a leaves room for a rim fitted short.
+const MAX_SIDE_PER_AXIS: f64 = 1.6;
 
 /// A rectangle of the full-resolution image, in whole pixels, around one
 /// rim.
