@@ -441,7 +441,11 @@ fn small_region(
 ) -> (Vec<decoding::Found>, usize) {
     let view = img.crop(r.x0, r.y0, r.w, r.h);
     let (found, mut n) = small_look(img, &view, r, 1.0, d, budget, ws);
-    if !found.is_empty() || n >= budget || !small::worth_upsampling(img, r) {
+    if !found.is_empty()
+        || n >= budget
+        || n > small::MAX_PLAIN_READS_TO_UPSAMPLE
+        || !small::worth_upsampling(img, r)
+    {
         return (found, n);
     }
     // Nothing read at full resolution: once more upsampled 2x (see
