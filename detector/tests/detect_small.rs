@@ -28,6 +28,21 @@ fn scene(family: &'static Family, id: u64, side_px: f64, rng: &mut Rng) -> Scene
     s
 }
 
+/// Detects `s` (one tag of `family`, `id`): 1 if found, 0 if not; any
+/// detection must be that tag with every corner within 1 px.
+fn found_right(det: &mut Detector, s: &Scene, family: &Family, id: u64, what: &str) -> u32 {
+    let out = det.detect(&s.render());
+    assert!(out.len() <= 1, "{what}: {out:?}");
+    for d in &out {
+        assert_eq!((d.family.as_str(), d.id), (family.name(), id), "{what}");
+        let err = corner_errors(&d.corners, &s.corners())
+            .into_iter()
+            .fold(0.0, f64::max);
+        assert!(err <= 1.0, "{what}: corner {err:.2} px off");
+    }
+    u32::from(!out.is_empty())
+}
+
 /// Found share of 24 small tags (ct14 22-40 px, ct8 20-32 px) with
 /// `small_tags` on and off; every detection must have the right id and
 /// corners within 1 px.
@@ -48,19 +63,13 @@ fn found_share(small_tags: bool) -> f64 {
         };
         let id = rng.next_u64() % 256;
         let s = scene(family, id, side, &mut rng);
-        let out = det.detect(&s.render());
-        assert!(out.len() <= 1, "scene {k}: {out:?}");
-        for d in &out {
-            assert_eq!((d.family.as_str(), d.id), (family.name(), id), "scene {k}");
-            let err = corner_errors(&d.corners, &s.corners())
-                .into_iter()
-                .fold(0.0, f64::max);
-            assert!(
-                err <= 1.0,
-                "scene {k} ({side:.1} px): corner {err:.2} px off"
-            );
-            found += 1;
-        }
+        found += found_right(
+            &mut det,
+            &s,
+            family,
+            id,
+            &format!("scene {k} ({side:.1} px)"),
+        );
     }
     f64::from(found) / f64::from(total)
 }
@@ -148,18 +157,13 @@ fn tilted_tiny_found() -> f64 {
         s.blur = 0.5;
         s.noise = 2.0;
         s.seed = rng.next_u64();
-        let out = det.detect(&s.render());
-        for d in &out {
-            assert_eq!(d.id, id, "scene {k}");
-            let err = corner_errors(&d.corners, &s.corners())
-                .into_iter()
-                .fold(0.0, f64::max);
-            assert!(
-                err <= 1.0,
-                "scene {k} ({side:.1} px): corner {err:.2} px off"
-            );
-            found += 1;
-        }
+        found += found_right(
+            &mut det,
+            &s,
+            Family::ct14(),
+            id,
+            &format!("scene {k} ({side:.1} px)"),
+        );
     }
     f64::from(found) / f64::from(total)
 }
