@@ -606,10 +606,8 @@ fn verify_one(
             // little perspective, and its hidden corners, placed by the fit
             // of cells 1-2 px wide, were seen off by more than 3 px (on the
             // sigma calibration set, one of 30 with a hidden corner).
-            if d.occluded
-                && (d.corner_sigma.is_none() || !occluded_geometry_stands(&d.corners, d.estimated))
-                || d.upsampled && !occluded_geometry_stands(&d.corners, d.estimated)
-            {
+            let stands = occluded_geometry_stands(&d.corners, d.estimated);
+            if d.occluded && (d.corner_sigma.is_none() || !stands) || d.upsampled && !stands {
                 return None;
             }
             Some(d)

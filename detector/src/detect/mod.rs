@@ -448,10 +448,12 @@ fn small_region(
     {
         return (found, n);
     }
+    let Some(t) = r.tight() else {
+        return (found, n);
+    };
     // Nothing read at full resolution: once more upsampled 2x (see
     // `small::UPSAMPLE_BELOW_SIDE_PX`).
     let (mut rows, mut up) = (std::mem::take(&mut ws.up_rows), std::mem::take(&mut ws.up));
-    let t = r.tight();
     let (w2, h2) = small::upsample_2x(&img.crop(t.x0, t.y0, t.w, t.h), &mut rows, &mut up);
     let zoomed = GrayView::packed(&up, w2 as usize, h2 as usize);
     let (mut found, m) = small_look(img, &zoomed, &t, 2.0, d, budget - n, ws);

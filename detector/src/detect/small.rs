@@ -135,28 +135,12 @@ pub(crate) struct Region {
 impl Region {
     /// The part of the region the upsampled look segments: the rim's
     /// square out to [`UPSAMPLE_PER_AXIS`] semi-major axes and
-    /// [`UPSAMPLE_MARGIN_PX`] beyond, within the region.
-    pub(crate) fn tight(&self) -> Region {
+    /// [`UPSAMPLE_MARGIN_PX`] beyond, within the region; `None` if nothing
+    /// of it lies there (a rim centred outside the image).
+    pub(crate) fn tight(&self) -> Option<Region> {
         let half = UPSAMPLE_PER_AXIS * self.axis + UPSAMPLE_MARGIN_PX;
-        let (x1, y1) = (self.x0 + self.w, self.y0 + self.h);
-        let clip = |v: f64, lo: u32, hi: u32| (v.max(0.0) as u32).clamp(lo, hi);
-        let (c, a) = (self.centre, self.axis);
-        let (tx0, ty0) = (
-            clip(c[0] - half, self.x0, x1),
-            clip(c[1] - half, self.y0, y1),
-        );
-        let (tx1, ty1) = (
-            clip((c[0] + half).ceil() + 1.0, tx0, x1),
-            clip((c[1] + half).ceil() + 1.0, ty0, y1),
-        );
-        Region {
-            x0: tx0,
-            y0: ty0,
-            w: tx1 - tx0,
-            h: ty1 - ty0,
-            centre: c,
-            axis: a,
-        }
+        let within = ([self.x0, self.y0], [self.x0 + self.w, self.y0 + self.h]);
+        square_around(self.centre, self.axis, half, within)
     }
 
     fn contains(&self, o: &Region) -> bool {
@@ -194,22 +178,8 @@ pub(crate) fn regions(
             continue;
         }
         let half = REGION_PER_AXIS * a + REGION_MARGIN_PX;
-        let clip = |v: f64, hi: u32| v.clamp(0.0, f64::from(hi)) as u32;
-        let (x0, y0) = (clip(c[0] - half, width), clip(c[1] - half, height));
-        let (x1, y1) = (
-            clip((c[0] + half).ceil() + 1.0, width),
-            clip((c[1] + half).ceil() + 1.0, height),
-        );
-        if x1 <= x0 || y1 <= y0 {
+        let Some(r) = square_around(c, a, half, ([0, 0], [width, height])) else {
             continue;
-        }
-        let r = Region {
-            x0,
-            y0,
-            w: x1 - x0,
-            h: y1 - y0,
-            centre: c,
-            axis: a,
         };
         if out.iter().any(|o| o.contains(&r)) {
             continue;
@@ -217,6 +187,33 @@ pub(crate) fn regions(
         out.push(r);
     }
     out
+}
+
+/// The region of whole pixels covering the square of half-side `half`
+/// around the rim centre `c` (semi-major axis `axis`), clipped to the
+/// pixels `within.0 .. within.1` (top-left inclusive, bottom-right
+/// exclusive); `None` if nothing is left.
+fn square_around(
+    c: [f64; 2],
+    axis: f64,
+    half: f64,
+    within: ([u32; 2], [u32; 2]),
+) -> Option<Region> {
+    let (lo, hi) = within;
+    let clip = |v: f64, k: usize| v.clamp(f64::from(lo[k]), f64::from(hi[k])) as u32;
+    let (x0, y0) = (clip(c[0] - half, 0), clip(c[1] - half, 1));
+    let (x1, y1) = (
+        clip((c[0] + half).ceil() + 1.0, 0),
+        clip((c[1] + half).ceil() + 1.0, 1),
+    );
+    (x1 > x0 && y1 > y0).then_some(Region {
+        x0,
+        y0,
+        w: x1 - x0,
+        h: y1 - y0,
+        centre: c,
+        axis,
+    })
 }
 
 /// Half-side, in data-square sides, of the square around a found tag in
@@ -376,6 +373,20 @@ mod tests {
         // Clipped at the image's top-left.
         assert_eq!((r[1].x0, r[1].y0), (0, 0));
         assert!(r.iter().all(|q| q.x0 + q.w <= 320 && q.y0 + q.h <= 240));
+    }
+
+    #[test]
+    fn the_upsampled_part_stays_in_its_region_or_is_none() {
+        let r = regions(&[rim([20.0, 20.0], 10.0)], 2.0, &[], 320, 240)[0];
+        // Centre (40.5, 40.5), axis 20: half-side 1.15 x 20 + 5 = 28.
+        let t = r.tight().unwrap();
+        assert_eq!((t.x0, t.y0, t.w, t.h), (12, 12, 58, 58));
+        assert!(r.contains(&t));
+        // A rim centred off the image's left edge: its region holds only
+        // the first columns, and the tighter square none of them.
+        let off = regions(&[rim([-16.0, 50.0], 10.0)], 2.0, &[], 320, 240);
+        assert_eq!((off[0].x0, off[0].w), (0, 6), "{off:?}");
+        assert!(off[0].tight().is_none());
     }
 
     #[test]
