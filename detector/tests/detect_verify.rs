@@ -195,3 +195,47 @@ fn corner_uncertainty_covers_the_truth() {
     eprintln!("corners within 2 sigma: {within} of {n}");
     assert!(share >= 0.9, "only {share:.2} of corners within 2 sigma");
 }
+
+/// Small tags (data square 30-44 px) with a mid-grey triangle over one
+/// corner, cutting 30-40% of the data square and running on over the
+/// disc (the wild benchmark's `triangle` occluder). Near a hidden corner
+/// the sides are cut short, and the model fit, free, crept along the
+/// direction they leave unconstrained on to the triangle's edges, where
+/// the tag no longer read: right readings were dropped. Held near the
+/// reading's geometry on a second try, it confirms them (here 9 of 40
+/// found, 7 before; the misses are quads never formed, a separate gap).
+#[test]
+fn small_tags_under_a_grey_triangle_are_confirmed() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(23);
+    let (mut found, mut total) = (0, 0);
+    for k in 0..40u64 {
+        let id = rng.next_u64() % 256;
+        let tilt = (
+            rng.range(-0.6, 0.6),
+            rng.range(-0.6, 0.6),
+            rng.range(0.0, std::f64::consts::TAU),
+        );
+        let mut s = scene(id, rng.range(30.0, 44.0), tilt, k);
+        let grey = rng.range(100.0, 160.0) as u8;
+        for poly in occluders_within(
+            Occlusion::Triangle,
+            rng.range(0.3, 0.4),
+            (k % 4) as u32,
+            rng.uniform(),
+            1.0,
+        ) {
+            s.occluders.push(Occluder { poly, grey });
+        }
+        let out = det.detect(&s.render());
+        total += 1;
+        for d in &out {
+            assert_eq!(d.id, id, "wrong id in scene {k}: {d:?}");
+            let (_, rough) = judge(d, &s);
+            assert!(!rough, "scene {k}: rough {d:?} truth {:?}", s.corners());
+            found += 1;
+        }
+    }
+    eprintln!("grey triangles: {found} of {total} found, none rough");
+    assert!(found >= 9, "only {found} of {total} found");
+}
