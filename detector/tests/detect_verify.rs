@@ -196,19 +196,15 @@ fn corner_uncertainty_covers_the_truth() {
     assert!(share >= 0.9, "only {share:.2} of corners within 2 sigma");
 }
 
-/// Small tags (data square 30-44 px) with a mid-grey triangle over one
-/// corner, cutting 30-40% of the data square and running on over the
-/// disc (the wild benchmark's `triangle` occluder). Near a hidden corner
-/// the sides are cut short, and the model fit, free, crept along the
-/// direction they leave unconstrained on to the triangle's edges, where
-/// the tag no longer read: right readings were dropped. Held near the
-/// reading's geometry on a second try, it confirms them (here 9 of 40
-/// found, 7 before; the misses are quads never formed, a separate gap).
-#[test]
-fn small_tags_under_a_grey_triangle_are_confirmed() {
+/// Tags of data square `side` px (ct14, tilted) with a mid-grey triangle
+/// over one corner, cutting 30-40% of the data square and running on over
+/// the disc (the wild benchmark's `triangle` occluder), in 40 scenes:
+/// how many are found, after checking that every detection has the right
+/// id and no rough corner.
+fn grey_triangles(side: std::ops::Range<f64>, seed: u64) -> usize {
     let mut det = Detector::new(DetectorConfig::default()).unwrap();
-    let mut rng = Rng::new(23);
-    let (mut found, mut total) = (0, 0);
+    let mut rng = Rng::new(seed);
+    let mut found = 0;
     for k in 0..40u64 {
         let id = rng.next_u64() % 256;
         let tilt = (
@@ -216,7 +212,7 @@ fn small_tags_under_a_grey_triangle_are_confirmed() {
             rng.range(-0.6, 0.6),
             rng.range(0.0, std::f64::consts::TAU),
         );
-        let mut s = scene(id, rng.range(30.0, 44.0), tilt, k);
+        let mut s = scene(id, rng.range(side.start, side.end), tilt, k);
         let grey = rng.range(100.0, 160.0) as u8;
         for poly in occluders_within(
             Occlusion::Triangle,
@@ -227,15 +223,35 @@ fn small_tags_under_a_grey_triangle_are_confirmed() {
         ) {
             s.occluders.push(Occluder { poly, grey });
         }
-        let out = det.detect(&s.render());
-        total += 1;
-        for d in &out {
+        for d in &det.detect(&s.render()) {
             assert_eq!(d.id, id, "wrong id in scene {k}: {d:?}");
             let (_, rough) = judge(d, &s);
             assert!(!rough, "scene {k}: rough {d:?} truth {:?}", s.corners());
             found += 1;
         }
     }
-    eprintln!("grey triangles: {found} of {total} found, none rough");
-    assert!(found >= 9, "only {found} of {total} found");
+    eprintln!("grey triangles, side {side:?} px: {found} of 40 found, none rough");
+    found
+}
+
+/// Small tags: near a hidden corner the sides are cut short, and the model
+/// fit, free, crept along the direction they leave unconstrained on to the
+/// triangle's edges, where the tag no longer read: right readings were
+/// dropped (7 of 40 found). Held near the reading's geometry on a second
+/// try, it confirms them (9), and a quad guessed from one corner and the
+/// centre checker forms where no other corner did (14).
+#[test]
+fn small_tags_under_a_grey_triangle_are_found() {
+    let found = grey_triangles(30.0..44.0, 23);
+    assert!(found >= 14, "only {found} of 40 found");
+}
+
+/// Mid-sized tags, found at half resolution: both sides next to the hidden
+/// corner are cut within a fifth of a side of their other ends, so those
+/// corners are seldom formed, and only one corner of the square is: 21 of
+/// 40 were found before the one-corner guess, 33 with it.
+#[test]
+fn mid_sized_tags_under_a_grey_triangle_are_found() {
+    let found = grey_triangles(60.0..75.0, 23);
+    assert!(found >= 33, "only {found} of 40 found");
 }

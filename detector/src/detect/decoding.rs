@@ -296,8 +296,10 @@ pub(super) fn plan(
         .position(|f| inside(&f.reading.det.corners, centre));
     // A linked candidate (see `quads`) over a tag already read is
     // never its rival: on large tags the cells bridge each other and
-    // make many of them.
-    if cand.linked && rival.is_some() {
+    // make many of them. Nor is a guessed one: three of its corners are
+    // a parallelogram's, and a reading of it that beats the tag's own
+    // would only be worse placed.
+    if (cand.linked || cand.guessed) && rival.is_some() {
         return None;
     }
     if let Some(r) = rival {

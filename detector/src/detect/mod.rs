@@ -15,8 +15,9 @@
 //! 4. `ellipses`: the disc rim as ellipse candidates from arcs, robust to
 //!    a partly hidden rim;
 //! 5. `quads`: candidate quads, with the triangle, same-side, symmetry and
-//!    diagonal occlusion cases (the paper's Algorithm 2); each carries the
-//!    edge pieces its corners were seen on;
+//!    diagonal occlusion cases (the paper's Algorithm 2) and, last, one
+//!    corner around the centre checker; each carries the edge pieces its
+//!    corners were seen on;
 //! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
 //!    then [`crate::decode_quad_with`] at full resolution (the cells read
 //!    one by one through the Reed-Solomon code; for a ct14 tag the code
@@ -277,6 +278,9 @@ struct Workspace {
     /// horizontally ([`small::upsample_2x`]).
     up: Vec<u8>,
     up_rows: Vec<u16>,
+    /// The guessed candidates of a region's full-resolution look, kept
+    /// for after its upsampled look ([`small_region`]).
+    guessed: Vec<quads::Candidate>,
 }
 
 /// The buffers of stages 1-5, from the working image to candidate quads.
@@ -430,8 +434,11 @@ fn threshold_bands(
 /// The full-resolution second look in one small-tag region `r` of `img`:
 /// stages 1-5 on the region at full resolution, then its rim's candidates
 /// decoded, at most `budget` of them; for a rim of a very small tag where
-/// that read nothing, the same on the region upsampled 2x. Returns the
-/// tags found and the candidates decoded.
+/// that read nothing, the same on the region upsampled 2x; where still
+/// nothing read, the full-resolution look's guessed candidates (see
+/// `quads::one_corner`), kept back so that they neither count against the
+/// upsampled look nor come before it. Returns the tags found and the
+/// candidates decoded.
 fn small_region(
     img: &GrayView<'_>,
     r: &small::Region,
@@ -440,12 +447,44 @@ fn small_region(
     ws: &mut Workspace,
 ) -> (Vec<decoding::Found>, usize) {
     let view = img.crop(r.x0, r.y0, r.w, r.h);
-    let (found, mut n) = small_look(img, &view, r, 1.0, d, budget, ws);
-    if !found.is_empty()
-        || n >= budget
-        || n > small::MAX_PLAIN_READS_TO_UPSAMPLE
-        || !small::worth_upsampling(img, r)
-    {
+    let (found, n) = small_look(img, &view, r, 1.0, d, budget, ws);
+    let mut guessed = std::mem::take(&mut ws.guessed);
+    guessed.clear();
+    guessed.extend(
+        ws.seg
+            .candidates
+            .iter()
+            .filter(|c| c.guessed)
+            .filter_map(|c| small::of_rim(c, r, 1.0)),
+    );
+    let (found, mut n) = if found.is_empty() {
+        small_upsampled(img, r, d, budget, (found, n), ws)
+    } else {
+        (found, n)
+    };
+    if found.is_empty() && n < budget && !guessed.is_empty() {
+        let (more, m) = decode_small(img, &guessed, d, budget - n, ws);
+        n += m;
+        ws.guessed = guessed;
+        return (more, n);
+    }
+    ws.guessed = guessed;
+    (found, n)
+}
+
+/// The upsampled look of [`small_region`] after a full-resolution look
+/// that read nothing (`plain`: its tags and candidates decoded), where the
+/// rim is small and patterned enough for it.
+fn small_upsampled(
+    img: &GrayView<'_>,
+    r: &small::Region,
+    d: &SmallPass<'_>,
+    budget: usize,
+    plain: (Vec<decoding::Found>, usize),
+    ws: &mut Workspace,
+) -> (Vec<decoding::Found>, usize) {
+    let (found, mut n) = plain;
+    if n >= budget || n > small::MAX_PLAIN_READS_TO_UPSAMPLE || !small::worth_upsampling(img, r) {
         return (found, n);
     }
     let Some(t) = r.tight() else {
@@ -467,7 +506,8 @@ fn small_region(
 
 /// Stages 1-5 on `view` (region `r` of `img`, at `zoom` times its
 /// resolution), then the rim's candidates decoded on `img`, at most
-/// `budget`.
+/// `budget`; at full resolution (`zoom` 1) without the guessed ones, which
+/// [`small_region`] decodes last.
 fn small_look(
     img: &GrayView<'_>,
     view: &GrayView<'_>,
@@ -485,11 +525,24 @@ fn small_look(
         .seg
         .candidates
         .iter()
+        .filter(|c| zoom != 1.0 || !c.guessed)
         .filter_map(|c| small::of_rim(c, r, zoom))
         .collect();
+    decode_small(img, &shifted, d, budget, ws)
+}
+
+/// A small-tag region's candidates (full-image coordinates) decoded on
+/// `img`, at most `budget`.
+fn decode_small(
+    img: &GrayView<'_>,
+    candidates: &[quads::Candidate],
+    d: &SmallPass<'_>,
+    budget: usize,
+    ws: &mut Workspace,
+) -> (Vec<decoding::Found>, usize) {
     decoding::decode_candidates(
         img,
-        &shifted,
+        candidates,
         1.0,
         d.targets,
         &decoding::DecodingParams {

@@ -16,7 +16,12 @@
 //!   their four corners already form a 4-cycle across borders, which is
 //!   the merge the paper does as a separate step;
 //! - diagonal: two opposite corners with the anchor between them; each
-//!   missing corner is where a line of one meets a line of the other.
+//!   missing corner is where a line of one meets a line of the other;
+//! - one corner (not in the paper): a corner alone, when the anchor is the
+//!   centre checker's disc, makes a parallelogram around that centre
+//!   (`one_corner`). An occluder over one corner cuts both sides next to
+//!   it short, and at 30-40% coverage the corners at their other ends are
+//!   often never formed. Such guessed candidates are decoded last of all.
 //!
 //! Every corner a case had to compute is marked estimated. The search runs
 //! first on each border's own corners (tags found without any ellipse),
@@ -61,8 +66,12 @@ pub(crate) struct Candidate {
     /// Area (working px^2).
     pub area: f64,
     /// Found by the linked pass, across borders joined by bridges: such
-    /// candidates are decoded after all others.
+    /// candidates are decoded after all others but the guessed ones.
     pub linked: bool,
+    /// Guessed from one corner and the tag centre (see `one_corner`):
+    /// decoded last of all, and never as a rival reading of a tag already
+    /// read, since three of its corners are a parallelogram's.
+    pub guessed: bool,
 }
 
 /// The two line pieces that meet at a detected corner.
@@ -249,6 +258,7 @@ fn push(
             real: edges.iter().filter(|s| s.is_some()).count(),
             area,
             linked: false,
+            guessed: false,
         });
     }
 }
@@ -492,6 +502,15 @@ pub(crate) fn find_candidates<W: Default + Send>(
     out.truncate(p.max_candidates);
     s.replaced = replaced;
     search_linked(all_corners, links, p, workers, s, out);
+    // Last, one corner and the centre, around each ellipse whose anchor is
+    // the centre checker's disc.
+    if p.recover {
+        for e in ellipses.iter().filter(|e| e.checker) {
+            for c in corners.iter().filter(|c| around(c, e)) {
+                one_corner(c, e.anchor, p, out);
+            }
+        }
+    }
     // Quads found on a border alone get the tag centre of a checker disc
     // that sits where their diagonals cross: refinement uses it to place
     // hidden corners.
@@ -507,11 +526,11 @@ pub(crate) fn find_candidates<W: Default + Send>(
             .min_by(|a, b| norm(sub(a.anchor, x)).total_cmp(&norm(sub(b.anchor, x))))
             .map(|e| e.anchor);
     }
-    // Best first: linked candidates last, then more real corners, then
-    // larger.
+    // Best first: linked candidates near the end, guessed ones last, then
+    // more real corners, then larger.
     out.sort_by(|a, b| {
-        a.linked
-            .cmp(&b.linked)
+        (a.guessed, a.linked)
+            .cmp(&(b.guessed, b.linked))
             .then(b.real.cmp(&a.real))
             .then(b.area.total_cmp(&a.area))
     });
@@ -539,20 +558,59 @@ fn search_ellipse(
     s: &mut QuadScratch,
     out: &mut Vec<Candidate>,
 ) {
-    let o = e.anchor;
     let mut group = std::mem::take(&mut s.group);
     group.clear();
-    let reach = ELLIPSE_REACH * e.a;
-    for (ci, c) in corners.iter().enumerate() {
-        let d = norm(sub(c.pos, e.centre));
-        if d < reach && d > ELLIPSE_HOLE * e.b && faces(c, o) {
-            group.push(ci as u32);
-        }
-    }
+    group.extend(
+        corners
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| around(c, e))
+            .map(|(ci, _)| ci as u32),
+    );
     if group.len() >= MIN_ELLIPSE_CORNERS {
-        search_group(corners, &group, Some(o), None, p, s, out);
+        search_group(corners, &group, Some(e.anchor), None, p, s, out);
     }
     s.group = group;
+}
+
+/// Whether corner `c` is one of ellipse `e`'s: inside its rim, off its
+/// centre, its inside facing the anchor.
+fn around(c: &Corner, e: &Ellipse) -> bool {
+    let d = norm(sub(c.pos, e.centre));
+    d < ELLIPSE_REACH * e.a && d > ELLIPSE_HOLE * e.b && faces(c, e.anchor)
+}
+
+/// One corner `c`, with its two sides, and the tag centre `o` (the centre
+/// checker's disc, unbiased under perspective): the quad where all else
+/// failed, as when an occluder hides one corner and cuts both sides next
+/// to it short, so that no other corner of the square is formed. The
+/// opposite corner lies on the diagonal through `o` (straight in any
+/// projection), as far beyond `o` as `c` is before it; the other two are
+/// where the lines through it parallel to `c`'s sides meet them. That is a
+/// parallelogram: refinement, which places hidden corners with the centre,
+/// and the model fit correct the perspective, and the decoder judges it.
+fn one_corner(c: &Corner, o: [f64; 2], p: &QuadParams, out: &mut Vec<Candidate>) {
+    let e = [2.0 * o[0] - c.pos[0], 2.0 * o[1] - c.pos[1]];
+    let (Some(b), Some(d)) = (
+        intersect(c.pos, c.dout, e, c.din),
+        intersect(c.pos, c.din, e, c.dout),
+    ) else {
+        return;
+    };
+    if !(ahead(c.pos, c.dout, b, p.min_side) && ahead(d, c.din, c.pos, p.min_side)) {
+        return;
+    }
+    let n = out.len();
+    push(
+        out,
+        [c.pos, b, e, d],
+        [Some(Edges::of(c)), None, None, None],
+        Some(o),
+        p,
+    );
+    if let Some(cand) = out.get_mut(n) {
+        cand.guessed = true;
+    }
 }
 
 /// `cand` with each estimated corner replaced by the nearest detected
@@ -812,6 +870,37 @@ mod tests {
             Some([false, false, true, true]),
             "{cands:?}"
         );
+    }
+
+    #[test]
+    fn one_corner_and_the_checker_centre_guess_the_square_last() {
+        // Only BR formed (an occluder over TL cut the sides next to BL and
+        // TR short); a clutter quad's four corners beside the tag.
+        let (a, b, c, d) = ([80.0, 80.0], [80.0, 100.0], [100.0, 100.0], [100.0, 80.0]);
+        let mut corners = vec![corner(BL, BR, TR, 0)];
+        corners.extend([
+            corner(d, a, b, 1),
+            corner(a, b, c, 1),
+            corner(b, c, d, 1),
+            corner(c, d, a, 1),
+        ]);
+        let cands = search(&corners, &[rim()]);
+        assert_eq!(
+            the_tag(&cands),
+            Some([true, true, false, true]),
+            "{cands:?}"
+        );
+        let last = cands.last().unwrap();
+        assert!(last.guessed && last.real == 1, "{cands:?}");
+        assert!(cands.iter().filter(|c| c.guessed).count() == 1);
+        // The rim's own centre is biased under perspective: no guess
+        // without the checker's disc.
+        let biased = Ellipse {
+            checker: false,
+            ..rim()
+        };
+        assert!(the_tag(&search(&corners, &[biased])).is_none());
+        assert!(search(&corners, &[biased]).iter().all(|c| !c.guessed));
     }
 
     #[test]
