@@ -376,7 +376,10 @@ pub(crate) enum Verdict {
     /// stands as it is.
     Unfit,
     /// The fitted geometry no longer reads as this tag: drop the reading.
-    Contradicted,
+    /// Carries the free fit's geometry when there was one: a likelihood
+    /// reading whose fit keeps its corners may still stand (see
+    /// `decoding::verify_one`).
+    Contradicted(Option<Verified>),
 }
 
 /// Verifies the reading `id` of `family` whose corners (TL, BL, BR, TR,
@@ -440,15 +443,21 @@ pub(crate) fn verify(
         fit.unsupported,
         fit.sigma,
     );
-    if !matches!(verdict, Verdict::Contradicted) {
+    if !matches!(verdict, Verdict::Contradicted(_)) {
         return verdict;
     }
+    let free = map4(&fit.h).map(|corners| Verified {
+        corners,
+        unsupported: fit.unsupported,
+        sigma: fit.sigma,
+        homography: fit.h,
+    });
     // The free fit may have crept off along a direction the visible
     // edges leave free: once more, held near the reading's geometry.
     let Some(held) = fit_model(img, &model, &h1, cell, contrast, Some(PRIOR_SIGMA_CELLS)) else {
-        return verdict;
+        return Verdict::Contradicted(free);
     };
-    check(
+    match check(
         img,
         family,
         id,
@@ -457,7 +466,10 @@ pub(crate) fn verify(
         occluded,
         held.unsupported,
         held.sigma,
-    )
+    ) {
+        Verdict::Contradicted(_) => Verdict::Contradicted(free),
+        v => v,
+    }
 }
 
 /// The verdict on the geometry `h`: it must still decode to `id` (by its
@@ -474,7 +486,7 @@ fn check(
     sigma: [f64; 4],
 ) -> Verdict {
     let Some(corners) = map4(&h) else {
-        return Verdict::Contradicted;
+        return Verdict::Contradicted(None);
     };
     let accept = Accept {
         nearest: occluded,
@@ -487,7 +499,7 @@ fn check(
             sigma,
             homography: h,
         }),
-        _ => Verdict::Contradicted,
+        _ => Verdict::Contradicted(None),
     }
 }
 
