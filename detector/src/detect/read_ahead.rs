@@ -261,7 +261,14 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
     scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
 ) -> (Vec<Found>, usize) {
     let centres: Vec<[f64; 2]> = candidates.iter().map(|c| centre_of(c, scale)).collect();
-    let wanted = |k: usize, found: &[Found]| plan(&candidates[k], centres[k], found, p).is_some();
+    // Guessed candidates (`quads::one_corner`) are left to the loop: they
+    // come last, and most of them lie over tags the candidates before them
+    // find, so read ahead they would be read in vain and waited for at the
+    // end of the frame (on the wild 1080p benchmark, decoding with 2
+    // threads took 4.58 ms instead of 3.99).
+    let wanted = |k: usize, found: &[Found]| {
+        !candidates[k].guessed && plan(&candidates[k], centres[k], found, p).is_some()
+    };
     let read = |k: usize| {
         let mut w = workers.scratch();
         outcome(
