@@ -27,12 +27,12 @@
 //!    whose fitted geometry no longer decodes to the same id (the fit
 //!    contradicts its own cells);
 //! 4. before rejecting, fits once more with each corner held near the
-//!    reading's geometry by a prior ([`PRIOR_SIGMA_CELLS`]): where an
-//!    occluder cuts the sides near a hidden corner short, the visible
-//!    edges leave a direction of the homography nearly free, and the free
-//!    fit creeps along it on to the occluder's edges (on the wild set,
-//!    readings with every corner within 0.2 px of the truth were fitted
-//!    4-18 px away and rejected).
+//!    reading's geometry (after any side shift) by a prior
+//!    ([`PRIOR_SIGMA_CELLS`]): where an occluder cuts the sides near a
+//!    hidden corner short, the visible edges leave a direction of the
+//!    homography nearly free, and the free fit creeps along it on to the
+//!    occluder's edges (on the wild set, readings with every corner within
+//!    0.2 px of the truth were fitted 4-18 px away and rejected).
 
 use crate::decode::{decode_quad_by, Accept, DecodeParams};
 use crate::family::Family;
