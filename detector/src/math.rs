@@ -140,6 +140,11 @@ pub(crate) fn to_full(p: [f64; 2], scale: f64) -> [f64; 2] {
     [p[0] * scale + o, p[1] * scale + o]
 }
 
+/// Mean length of the four sides of quad `q`.
+pub(crate) fn mean_side(q: &[[f64; 2]; 4]) -> f64 {
+    (0..4).map(|i| norm(sub(q[(i + 1) % 4], q[i]))).sum::<f64>() / 4.0
+}
+
 /// Whether `p` is inside (or on the border of) the convex quad `q`.
 pub(crate) fn inside(q: &[[f64; 2]; 4], p: [f64; 2]) -> bool {
     let mut sign = 0.0;

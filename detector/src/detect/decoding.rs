@@ -22,7 +22,7 @@ use crate::decode::{decode_quad_by, Accept, DecodeParams};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
-use crate::math::{inside, norm, sub, to_full};
+use crate::math::{inside, mean_side, norm, sub, to_full};
 use crate::view::GrayView;
 
 /// Default of [`DecodingParams::max_rivals`].
@@ -580,9 +580,9 @@ fn verify_one(
         // alone, is the less accurate of the two (this kept 13 readings on
         // the wild set and 11 on the calibration set, every corner within
         // 1.22 px of the truth; their fits were 0.5-1.5 px off). A code
-        // reading gets no such leave: one near the
-        // code's limit was read through a quad 15 px off that its fit
-        // agreed with, and only the fit's failed reading dropped it.
+        // reading gets no such leave: one near the code's limit was read
+        // through a quad 15 px off that its fit agreed with, and only the
+        // fit's failed reading dropped it.
         Verdict::Contradicted(Some(v))
             if d.likelihood && !moves_corners(&d.corners, &v.corners) =>
         {
@@ -634,14 +634,10 @@ fn verify_one(
 /// Whether the fitted corners `fitted` replace a reading's `own` (see
 /// [`KEEP_MOVE_PX`]).
 fn moves_corners(own: &[[f64; 2]; 4], fitted: &[[f64; 2]; 4]) -> bool {
-    let side = (0..4)
-        .map(|k| norm(sub(own[(k + 1) % 4], own[k])))
-        .sum::<f64>()
-        / 4.0;
     let moved = (0..4)
         .map(|k| norm(sub(fitted[k], own[k])))
         .fold(0.0, f64::max);
-    moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * side)
+    moved > KEEP_MOVE_PX.max(KEEP_MOVE_SIDE * mean_side(own))
 }
 
 /// Whether reading `a` of a tag is better than reading `b`: a reading by

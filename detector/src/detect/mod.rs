@@ -448,6 +448,11 @@ fn small_region(
 ) -> (Vec<decoding::Found>, usize) {
     let view = img.crop(r.x0, r.y0, r.w, r.h);
     let (found, n) = small_look(img, &view, r, 1.0, d, budget, ws);
+    if !found.is_empty() {
+        return (found, n);
+    }
+    // The guessed candidates are taken before the upsampled look reuses
+    // the segmentation's buffers.
     let mut guessed = std::mem::take(&mut ws.guessed);
     guessed.clear();
     guessed.extend(
@@ -457,38 +462,32 @@ fn small_region(
             .filter(|c| c.guessed)
             .filter_map(|c| small::of_rim(c, r, 1.0)),
     );
-    let (found, mut n) = if found.is_empty() {
-        small_upsampled(img, r, d, budget, (found, n), ws)
-    } else {
-        (found, n)
-    };
+    let (mut found, mut n) = small_upsampled(img, r, d, budget, n, ws);
     if found.is_empty() && n < budget && !guessed.is_empty() {
         let (more, m) = decode_small(img, &guessed, d, budget - n, ws);
+        found = more;
         n += m;
-        ws.guessed = guessed;
-        return (more, n);
     }
     ws.guessed = guessed;
     (found, n)
 }
 
 /// The upsampled look of [`small_region`] after a full-resolution look
-/// that read nothing (`plain`: its tags and candidates decoded), where the
-/// rim is small and patterned enough for it.
+/// that read nothing in `n` candidates decoded, where the rim is small and
+/// patterned enough for it; `n` plus the candidates it decoded.
 fn small_upsampled(
     img: &GrayView<'_>,
     r: &small::Region,
     d: &SmallPass<'_>,
     budget: usize,
-    plain: (Vec<decoding::Found>, usize),
+    n: usize,
     ws: &mut Workspace,
 ) -> (Vec<decoding::Found>, usize) {
-    let (found, mut n) = plain;
     if n >= budget || n > small::MAX_PLAIN_READS_TO_UPSAMPLE || !small::worth_upsampling(img, r) {
-        return (found, n);
+        return (Vec::new(), n);
     }
     let Some(t) = r.tight() else {
-        return (found, n);
+        return (Vec::new(), n);
     };
     // Nothing read at full resolution: once more upsampled 2x (see
     // `small::UPSAMPLE_BELOW_SIDE_PX`).
@@ -499,9 +498,8 @@ fn small_upsampled(
     for f in &mut found {
         f.mark_upsampled();
     }
-    n += m;
     (ws.up_rows, ws.up) = (rows, up);
-    (found, n)
+    (found, n + m)
 }
 
 /// Stages 1-5 on `view` (region `r` of `img`, at `zoom` times its

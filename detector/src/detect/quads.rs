@@ -45,7 +45,7 @@ use super::bridges::Links;
 use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
 use super::parallel::{collect_ranges, collect_ranges_with, Workers};
-use crate::math::{cross, dot, intersect, norm, sub, unit};
+use crate::math::{cross, dot, intersect, mean_side, norm, sub, unit};
 
 /// A candidate quad in working-image coordinates, corners anticlockwise on
 /// screen (TL, BL, BR, TR up to a rotation).
@@ -438,16 +438,13 @@ pub(crate) fn find_candidates<W: Default + Send>(
     // pieces on `workers`' threads.
     let mut borders = std::mem::take(&mut s.borders);
     borders.clear();
-    let mut i = 0;
-    while i < corners.len() {
-        let mut j = i + 1;
-        while j < corners.len() && corners[j].contour == corners[i].contour {
-            j += 1;
+    let mut start = 0;
+    for border in corners.chunk_by(|a, b| a.contour == b.contour) {
+        let end = start + border.len();
+        if border.len() >= MIN_BORDER_CORNERS {
+            borders.push((start as u32, end as u32));
         }
-        if j - i >= MIN_BORDER_CORNERS {
-            borders.push((i as u32, j as u32));
-        }
-        i = j;
+        start = end;
     }
     collect_ranges_with(
         workers,
@@ -519,7 +516,7 @@ pub(crate) fn find_candidates<W: Default + Send>(
         let Some(x) = intersect(q[0], sub(q[2], q[0]), q[1], sub(q[3], q[1])) else {
             continue;
         };
-        let side = (0..4).map(|i| norm(sub(q[(i + 1) % 4], q[i]))).sum::<f64>() / 4.0;
+        let side = mean_side(&q);
         cand.anchor = ellipses
             .iter()
             .filter(|e| e.checker && norm(sub(e.anchor, x)) < ANCHOR_MATCH * side)

@@ -39,7 +39,7 @@ use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
 use crate::homography::Homography;
-use crate::math::{dot, norm, sample_bilinear, sub};
+use crate::math::{dot, mean_side, norm, sample_bilinear, sub};
 use crate::view::GrayView;
 
 use nalgebra::{Matrix3, SMatrix, SVector};
@@ -404,11 +404,7 @@ pub(crate) fn verify(
     let Some(h0) = Homography::from_points(&CORNERS, corners) else {
         return Verdict::Unfit;
     };
-    let side = (0..4)
-        .map(|i| norm(sub(corners[(i + 1) % 4], corners[i])))
-        .sum::<f64>()
-        / 4.0;
-    let cell = side / (model.grid as f64 + 2.0);
+    let cell = mean_side(corners) / (model.grid as f64 + 2.0);
     // A clean reading has every cell right already: no shift can win
     // cells, so the search (most of this stage's time) is skipped.
     let (h1, shifted) = if corrected > 0 && cell > MIN_SHIFT_CELL_PX {
