@@ -25,6 +25,8 @@ mod math;
 mod nearest;
 pub mod pose;
 pub mod rs;
+#[cfg(test)]
+mod test_images;
 pub mod view;
 
 pub use decode::{decode_quad, decode_quad_with, DecodeParams, QuadReading};

@@ -76,39 +76,8 @@ fn ring_too_flat(img: &GrayView<'_>, q: &[[f64; 2]; 4], n: usize) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::family::Family;
-    use crate::geometry::B;
-    use crate::grid_code::encode_cells;
+    use crate::test_images::tag_image;
     use image::GrayImage;
-
-    /// A ct14 tag with data-square side `side` px centred at `c`, turned by
-    /// `turn` radians, on a white page: black frame, white margin, cells.
-    fn tag_image(side: f64, c: [f64; 2], turn: f64) -> (GrayImage, [[f64; 2]; 4]) {
-        let fam = Family::ct14();
-        let n = fam.grid();
-        let cells = encode_cells(fam, 77).unwrap();
-        let (cs, sn) = (turn.cos(), turn.sin());
-        let img = GrayImage::from_fn(320, 320, |x, y| {
-            let (dx, dy) = (f64::from(x) - c[0], f64::from(y) - c[1]);
-            let (u, v) = ((cs * dx + sn * dy) / side, (-sn * dx + cs * dy) / side);
-            let black = if u.abs().max(v.abs()) > 0.5 + B {
-                false
-            } else if u.abs().max(v.abs()) > 0.5 {
-                true
-            } else {
-                let step = 1.0 / (n as f64 + 2.0);
-                let (j, i) = ((u + 0.5) / step - 1.0, (v + 0.5) / step - 1.0);
-                let inside = |k: f64| (0.0..n as f64).contains(&k);
-                inside(i) && inside(j) && cells[i as usize * n + j as usize]
-            };
-            image::Luma([if black { 30 } else { 220 }])
-        });
-        let corners = CORNERS.map(|[u, v]| {
-            let (x, y) = (u * side, v * side);
-            [c[0] + cs * x - sn * y, c[1] + sn * x + cs * y]
-        });
-        (img, corners)
-    }
 
     /// `img` averaged over `(2r + 1)^2` pixels: a strong blur.
     fn box_blur(img: &GrayImage, r: i64) -> GrayImage {
@@ -131,7 +100,7 @@ mod tests {
 
     #[test]
     fn a_real_tag_passes_even_with_coarse_corners() {
-        let (img, q) = tag_image(96.0, [160.0, 160.0], 0.3);
+        let (img, q) = tag_image(77, 96.0, [160.0, 160.0], 0.3);
         assert!(!ring_too_flat(&(&img).into(), &q, 14));
         // Each corner up to 2 px off, as a half-resolution quad's are.
         let off = shifted(&q, [[2.0, -1.5], [-2.0, 1.0], [1.5, 2.0], [-1.0, -2.0]]);
@@ -140,7 +109,7 @@ mod tests {
 
     #[test]
     fn a_blurred_tag_passes() {
-        let (img, q) = tag_image(60.0, [160.0, 160.0], 0.5);
+        let (img, q) = tag_image(77, 60.0, [160.0, 160.0], 0.5);
         let blurred = box_blur(&img, 2);
         let off = shifted(&q, [[1.5, 0.0], [0.0, 1.5], [-1.5, 0.0], [0.0, -1.5]]);
         assert!(!ring_too_flat(&(&blurred).into(), &off, 14));
@@ -148,7 +117,7 @@ mod tests {
 
     #[test]
     fn a_tag_under_a_stick_or_in_shadow_passes() {
-        let (mut img, q) = tag_image(100.0, [160.0, 160.0], 0.0);
+        let (mut img, q) = tag_image(77, 100.0, [160.0, 160.0], 0.0);
         // A dark stick 12 px wide across the whole tag.
         for y in 150..162 {
             for x in 0..320 {
@@ -189,7 +158,7 @@ mod tests {
 
     #[test]
     fn clutter_quads_are_refused() {
-        let (img, q) = tag_image(96.0, [160.0, 160.0], 0.0);
+        let (img, q) = tag_image(77, 96.0, [160.0, 160.0], 0.0);
         let view: GrayView<'_> = (&img).into();
         // The quad of the frame's outer border: its "margin" is the black
         // frame and its "frame" the white page.
