@@ -256,19 +256,14 @@ fn mid_sized_tags_under_a_grey_triangle_are_found() {
     assert!(found >= 33, "only {found} of 40 found");
 }
 
-/// Five tags of the wild set crossed by a stick or a cable, all four
-/// corners in view (`fixtures/wild/stick-crops.csv`): the stick cuts the
-/// data square in two, the quads of the pieces estimate two corners each,
-/// and with two estimated corners the readings were dropped (in their
-/// full frames none of the five was found) until a corner whose frame and margin read as printed
-/// around it, or which lies where the other three put it, counted as seen
-/// when the fit supports all four. Found now, each corner within 1 px.
-#[test]
-fn tags_cut_in_two_by_a_stick_are_found() {
+/// Runs the detector on each crop of `fixtures/wild/<list>` and checks
+/// that it finds exactly that crop's tag, every corner within `max_err` px
+/// of the truth; returns the detections.
+fn crops_found(list: &str, max_err: f64) -> Vec<Detection> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wild");
-    let list = std::fs::read_to_string(dir.join("stick-crops.csv")).unwrap();
+    let list = std::fs::read_to_string(dir.join(list)).unwrap();
     let mut det = Detector::new(DetectorConfig::default()).unwrap();
-    let mut n = 0;
+    let mut found = Vec::new();
     for line in list.lines().skip(1) {
         let f: Vec<&str> = line.split(',').collect();
         let id: u64 = f[1].parse().unwrap();
@@ -282,8 +277,37 @@ fn tags_cut_in_two_by_a_stick_are_found() {
         let err = corner_errors(&d.corners, &truth)
             .into_iter()
             .fold(0.0, f64::max);
-        assert!(err <= 1.0, "{}: a corner {err:.2} px off", f[0]);
-        n += 1;
+        assert!(err <= max_err, "{}: a corner {err:.2} px off", f[0]);
+        found.push(d.clone());
     }
-    assert_eq!(n, 5);
+    found
+}
+
+/// Five tags of the wild set crossed by a stick or a cable, all four
+/// corners in view (`fixtures/wild/stick-crops.csv`): the stick cuts the
+/// data square in two, the quads of the pieces estimate two corners each,
+/// and with two estimated corners the readings were dropped (in their
+/// full frames none of the five was found) until a corner whose frame and
+/// margin read as printed around it, or which lies where the other three
+/// put it, counted as seen when the fit supports all four. Found now, each
+/// corner within 1 px.
+#[test]
+fn tags_cut_in_two_by_a_stick_are_found() {
+    assert_eq!(crops_found("stick-crops.csv", 1.0).len(), 5);
+}
+
+/// Five small, blurred tags of the wild set read by the code with 6-7
+/// corrections (`fixtures/wild/kept-crops.csv`), whose model fit, within a
+/// pixel of the reading's corners, no longer reads within the code's
+/// capacity: dropped as contradicted (none of the five was found, in its
+/// crop or its frame), they stand on their own corners now. Each corner
+/// within 1 px, fitted (with a sigma), none read by likelihood.
+#[test]
+fn small_code_readings_whose_fit_keeps_their_corners_stand() {
+    let found = crops_found("kept-crops.csv", 1.0);
+    assert_eq!(found.len(), 5);
+    for d in &found {
+        assert!(!d.likelihood && (5..=7).contains(&d.corrected), "{d:?}");
+        assert!(d.corner_sigma.is_some(), "not fitted: {d:?}");
+    }
 }

@@ -620,11 +620,25 @@ fn verify_one(
         // alone, is the less accurate of the two (this kept 13 readings on
         // the wild set and 11 on the calibration set, every corner within
         // 1.22 px of the truth; their fits were 0.5-1.5 px off). A code
-        // reading gets no such leave: one near the code's limit was read
+        // reading near the code's limit gets no such leave: one was read
         // through a quad 15 px off that its fit agreed with, and only the
         // fit's failed reading dropped it.
         Verdict::Contradicted(Some(v))
             if d.likelihood && !moves_corners(&d.corners, &v.corners) =>
+        {
+            Verdict::Fitted(v)
+        }
+        // So does a reading by the code with a margin of the code's
+        // capacity unused (one that would stand without a fit, see
+        // `UNFIT_MARGIN`) whose fit keeps its corners: small tags read with
+        // 5-7 corrections whose corners were within 0.1 px of the truth,
+        // and whose fit, as close, no longer read within the code's
+        // capacity, were dropped (16 on the wild set, every corner within
+        // 1.2 px; the reading 15 px off above had 11 corrections).
+        Verdict::Contradicted(Some(v))
+            if !d.likelihood
+                && d.corrected + UNFIT_MARGIN <= t.max_corrected
+                && !moves_corners(&d.corners, &v.corners) =>
         {
             Verdict::Fitted(v)
         }
