@@ -72,7 +72,12 @@ fn sample_at(img: &GrayView<'_>, h: &Homography, u: f64, v: f64) -> Option<f64> 
 /// Tag coordinate of the centre of cell `j` (row or column) of an `n` x `n`
 /// grid whose cells are `step` wide.
 fn cell_centre(j: usize, step: f64) -> f64 {
-    -0.5 + (1.5 + j as f64) * step
+    cell_centre_at(j as f64, step)
+}
+
+/// [`cell_centre`] of a grid index that may lie outside the grid.
+fn cell_centre_at(j: f64, step: f64) -> f64 {
+    -0.5 + (1.5 + j) * step
 }
 
 /// Whether the four outermost samples of the grid [`sample_cells`] takes
@@ -93,21 +98,30 @@ fn grid_corners_inside(img: &GrayView<'_>, n: usize, h: &Homography) -> bool {
 /// falls outside the image.
 fn sample_cells(img: &GrayView<'_>, n: usize, h: &Homography) -> Option<Vec<f64>> {
     let step = 1.0 / (n as f64 + 2.0);
-    let offs = [-SAMPLE_SPREAD * step, 0.0, SAMPLE_SPREAD * step];
     let mut cells = Vec::with_capacity(n * n);
     for i in 0..n {
         for j in 0..n {
-            let (cu, cv) = (cell_centre(j, step), cell_centre(i, step));
-            let mut sum = 0.0;
-            for dv in offs {
-                for du in offs {
-                    sum += sample_at(img, h, cu + du, cv + dv)?;
-                }
-            }
-            cells.push(sum / 9.0);
+            cells.push(cell_mean(img, h, step, i as f64, j as f64)?);
         }
     }
     Some(cells)
+}
+
+/// The mean of the 3 x 3 samples over the central half of the cell at
+/// grid row `i`, column `j` of a grid whose cells are `step` wide, through
+/// `h`; the indices may lie outside the grid (-1 is the white margin, -2
+/// the black frame's inner cell, `n` the margin on the far side). `None`
+/// when a sample falls outside the image.
+fn cell_mean(img: &GrayView<'_>, h: &Homography, step: f64, i: f64, j: f64) -> Option<f64> {
+    let (cu, cv) = (cell_centre_at(j, step), cell_centre_at(i, step));
+    let offs = [-SAMPLE_SPREAD * step, 0.0, SAMPLE_SPREAD * step];
+    let mut sum = 0.0;
+    for dv in offs {
+        for du in offs {
+            sum += sample_at(img, h, cu + du, cv + dv)?;
+        }
+    }
+    Some(sum / 9.0)
 }
 
 /// The cells' whiteness through `h` (row-major): 0 at the tag's measured
@@ -178,18 +192,6 @@ pub(crate) fn frame_misread_at_corners(
         return None;
     }
     let step = 1.0 / (n as f64 + 2.0);
-    let offs = [-SAMPLE_SPREAD * step, 0.0, SAMPLE_SPREAD * step];
-    // Whiteness of the cell at (fractional) grid row `i`, column `j`.
-    let cell_at = |i: f64, j: f64| -> Option<f64> {
-        let (cu, cv) = (-0.5 + (1.5 + j) * step, -0.5 + (1.5 + i) * step);
-        let mut sum = 0.0;
-        for dv in offs {
-            for du in offs {
-                sum += sample_at(img, h, cu + du, cv + dv)?;
-            }
-        }
-        Some((sum / 9.0 - black) / contrast)
-    };
     let last = (n - 1) as f64;
     let mut misread = [0; 4];
     for (k, wrong) in misread.iter_mut().enumerate() {
@@ -203,7 +205,7 @@ pub(crate) fn frame_misread_at_corners(
                     continue;
                 }
                 let dark = a < -1.0 || b < -1.0;
-                let y = cell_at(index(sv, a), index(su, b))?;
+                let y = (cell_mean(img, h, step, index(sv, a), index(su, b))? - black) / contrast;
                 *wrong += usize::from((y < 0.5) != dark);
             }
         }
@@ -674,6 +676,30 @@ mod tests {
             m[1] >= 3 && m[3] >= 3,
             "corners under occluders read as seen: {m:?}"
         );
+    }
+
+    /// No count, rather than a panic or a made-up one, where the cells
+    /// cannot be read: a tag running off the image, a flat image with no
+    /// black-to-white contrast, a degenerate quad.
+    #[test]
+    fn frame_misreads_are_none_where_the_cells_cannot_be_read() {
+        let n = Family::ct14().grid();
+        let (img, q) = tag_image(77, 96.0, [160.0, 160.0], 0.3);
+        let shifted = q.map(|[x, y]| [x + 150.0, y]);
+        let h = Homography::from_points(&CORNERS, &shifted).unwrap();
+        assert_eq!(frame_misread_at_corners(&(&img).into(), n, &h), None);
+        let flat = image::GrayImage::from_pixel(320, 320, image::Luma([128]));
+        let h = Homography::from_points(&CORNERS, &q).unwrap();
+        assert_eq!(frame_misread_at_corners(&(&flat).into(), n, &h), None);
+        let line = [
+            [100.0, 100.0],
+            [120.0, 120.0],
+            [140.0, 140.0],
+            [160.0, 160.0],
+        ];
+        assert!(Homography::from_points(&CORNERS, &line)
+            .and_then(|h| frame_misread_at_corners(&(&img).into(), n, &h))
+            .is_none());
     }
 
     /// Whiteness of a tag's cells under a glare spot: cells near the spot's

@@ -280,7 +280,9 @@ fn hidden_corners(
     unsupported: [bool; 4],
 ) -> [bool; 4] {
     let hidden: [bool; 4] = std::array::from_fn(|k| estimated[k] || unsupported[k]);
-    if !hidden.iter().any(|&e| e) {
+    // Only an estimated corner the fit supports may count as seen: with
+    // none, nothing is read.
+    if !(0..4).any(|k| estimated[k] && !unsupported[k]) {
         return hidden;
     }
     let misread = Homography::from_points(&CORNERS, corners)
@@ -644,23 +646,15 @@ fn verify_one(
         // 1.22 px of the truth; their fits were 0.5-1.5 px off). A code
         // reading near the code's limit gets no such leave: one was read
         // through a quad 15 px off that its fit agreed with, and only the
-        // fit's failed reading dropped it.
+        // fit's failed reading dropped it. But a code reading that would
+        // stand without a fit (`stands_unfit`) and whose fit keeps its
+        // corners stands on them likewise: small tags read with 5-7
+        // corrections whose corners were within 0.1 px of the truth, and
+        // whose fit, as close, no longer read within the code's capacity,
+        // were dropped (16 on the wild set, every corner within 1.2 px;
+        // the reading 15 px off above had 11 corrections).
         Verdict::Contradicted(Some(v))
-            if d.likelihood && !moves_corners(&d.corners, &v.corners) =>
-        {
-            Verdict::Fitted(v)
-        }
-        // So does a reading by the code with a margin of the code's
-        // capacity unused (one that would stand without a fit, see
-        // `UNFIT_MARGIN`) whose fit keeps its corners: small tags read with
-        // 5-7 corrections whose corners were within 0.1 px of the truth,
-        // and whose fit, as close, no longer read within the code's
-        // capacity, were dropped (16 on the wild set, every corner within
-        // 1.2 px; the reading 15 px off above had 11 corrections).
-        Verdict::Contradicted(Some(v))
-            if !d.likelihood
-                && d.corrected + UNFIT_MARGIN <= t.max_corrected
-                && !moves_corners(&d.corners, &v.corners) =>
+            if (d.likelihood || stands_unfit(&d, t)) && !moves_corners(&d.corners, &v.corners) =>
         {
             Verdict::Fitted(v)
         }
@@ -706,9 +700,16 @@ fn verify_one(
             Some(d)
         }
         // A likelihood reading never stands without the fit.
-        Verdict::Unfit if !d.likelihood && d.corrected + UNFIT_MARGIN <= t.max_corrected => Some(d),
+        Verdict::Unfit if stands_unfit(&d, t) => Some(d),
         Verdict::Unfit | Verdict::Contradicted(_) => None,
     }
+}
+
+/// Whether reading `d` of target `t` stands when its fit cannot be made:
+/// read by the code (a likelihood reading never does) with
+/// [`UNFIT_MARGIN`] symbols of the family's limit unused.
+fn stands_unfit(d: &Detection, t: &Target) -> bool {
+    !d.likelihood && d.corrected + UNFIT_MARGIN <= t.max_corrected
 }
 
 /// Whether the fitted corners `fitted` replace a reading's `own` (see
