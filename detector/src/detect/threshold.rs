@@ -47,7 +47,10 @@ pub(crate) const DOWNSAMPLE_FACTOR: f64 = 2.0;
 /// Buffers of the threshold stage, kept between frames.
 #[derive(Debug, Default)]
 pub(crate) struct ThresholdScratch {
-    /// The 2x downsampled working image (packed), when downsampling.
+    /// The last `2 radius + 2` rows of the 2x downsampled working image
+    /// (a ring, packed), when downsampling: all the window sums need, and
+    /// small enough to stay in cache, where the whole working image (a
+    /// quarter of the input) was written out and read back.
     small: Vec<u8>,
     /// Sum of each column over the window's rows.
     colsum: Vec<u32>,
@@ -141,15 +144,17 @@ pub(crate) fn threshold_rows(
     }
     let r = p.radius.max(1);
     let mut source = if work.scale == DOWNSAMPLE_FACTOR {
-        // The working rows the band reads; every byte is written by
-        // `Rows::produce` before it is read.
+        // The working rows the band reads, `2 r + 2` at a time; every
+        // byte is written by `Rows::produce` before it is read.
         let base = rows.start.saturating_sub(r);
         let end = (rows.end + r).min(h);
-        s.small.resize(w * (end - base), 0);
+        let ring = (end - base).min(2 * r + 2);
+        s.small.resize(w * ring, 0);
         Rows::Half {
             img: *img,
             small: &mut s.small,
             base,
+            ring,
         }
     } else {
         Rows::Full(*img)
@@ -166,14 +171,16 @@ pub(crate) fn threshold_rows(
 }
 
 /// Rows of the working image: the input's own, or made one by one (in
-/// order) by 2x downsampling into `small`, which holds working rows from
-/// `base` on.
+/// order) by 2x downsampling into `small`, which holds the last `ring`
+/// of the working rows from `base` on (row `y` in slot `(y - base) % ring`;
+/// a band needs rows `y - radius - 1 ..= y + radius` at row `y`).
 enum Rows<'a, 'b> {
     Full(GrayView<'a>),
     Half {
         img: GrayView<'a>,
         small: &'b mut [u8],
         base: usize,
+        ring: usize,
     },
 }
 
@@ -188,12 +195,18 @@ impl Rows<'_, '_> {
 
     /// Makes row `y` readable by [`Rows::row`]; called once per row.
     fn produce(&mut self, y: usize) {
-        if let Rows::Half { img, small, base } = self {
+        if let Rows::Half {
+            img,
+            small,
+            base,
+            ring,
+        } = self
+        {
             let w = img.width() as usize / 2;
             downsample_row(
                 img.row(2 * y),
                 img.row(2 * y + 1),
-                &mut small[(y - *base) * w..][..w],
+                &mut small[(y - *base) % *ring * w..][..w],
             );
         }
     }
@@ -202,9 +215,14 @@ impl Rows<'_, '_> {
     fn row(&self, y: usize) -> &[u8] {
         match self {
             Rows::Full(v) => v.row(y),
-            Rows::Half { img, small, base } => {
+            Rows::Half {
+                img,
+                small,
+                base,
+                ring,
+            } => {
                 let w = img.width() as usize / 2;
-                &small[(y - *base) * w..][..w]
+                &small[(y - *base) % *ring * w..][..w]
             }
         }
     }

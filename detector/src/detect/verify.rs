@@ -39,7 +39,7 @@ use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
 use crate::homography::Homography;
-use crate::math::{dot, mean_side, norm, sample_bilinear, sub};
+use crate::math::{dot, mean_side, norm, sample_bilinear, sample_profile, sub};
 use crate::view::GrayView;
 
 use nalgebra::{Matrix3, SMatrix, SVector};
@@ -696,9 +696,8 @@ fn measure(
     let step = (window / WINDOW_SAMPLES).max(MIN_PROFILE_STEP);
     let k = (window / step).round() as i32;
     prof.clear();
-    for i in -k..=k {
-        let s = f64::from(i) * step;
-        prof.push(sample_bilinear(img, p[0] + s * n[0], p[1] + s * n[1])?);
+    if !sample_profile(img, p, n, step, (-k, k), prof) {
+        return None;
     }
     let mid = k as usize;
     let white = prof[..=mid].iter().copied().fold(f64::MIN, f64::max);
