@@ -282,6 +282,9 @@ fn is_dark(p: u8, offset: u32, sum: u32, count: u32) -> u8 {
     u8::from(u32::from(p).wrapping_add(offset).wrapping_mul(count) < sum)
 }
 
+/// Integers below this are exact as `f32` (24-bit significand).
+const EXACT_F32: u32 = 1 << 24;
+
 /// Values summed at a time by [`prefix_sums`].
 const PREFIX_BLOCK: usize = 8;
 
@@ -343,13 +346,35 @@ fn threshold_row(
         return;
     }
     let count = rows * (2 * r + 1) as u32;
-    for (((d, &p), &hi), &lo) in dst[start..end]
-        .iter_mut()
-        .zip(&row[start..end])
-        .zip(&prefix[2 * r + 1..][..n])
-        .zip(&prefix[..n])
-    {
-        *d = is_dark(p, offset, hi.wrapping_sub(lo), count);
+    dark_run(
+        &row[start..end],
+        &prefix[2 * r + 1..][..n],
+        &prefix[..n],
+        count,
+        offset,
+        &mut dst[start..end],
+    );
+}
+
+/// `dst[i]` is [`is_dark`] of `row[i]` against the window sum
+/// `hi[i] - lo[i]` (wrapping) of `count` pixels, for a run of windows of
+/// one size. Where every value involved stays below 2^24 (a radius up to
+/// 90 whatever the offset, the default 10 included), the comparison is made
+/// in `f32`, exactly (integers below 2^24 and their products there are
+/// exact): SSE2, the x86-64 baseline, has no 32-bit integer multiply, and
+/// the `f32` loop thresholds the interior 10% faster on 1080p frames.
+fn dark_run(row: &[u8], hi: &[u32], lo: &[u32], count: u32, offset: u32, dst: &mut [u8]) {
+    if (255 + offset).saturating_mul(count) < EXACT_F32 {
+        let (c, off) = (count as f32, offset as f32);
+        for (((d, &p), &hi), &lo) in dst.iter_mut().zip(row).zip(hi).zip(lo) {
+            // Below 2^24: the signed conversion, which SSE2 has.
+            let sum = hi.wrapping_sub(lo) as i32 as f32;
+            *d = u8::from((f32::from(p) + off) * c < sum);
+        }
+    } else {
+        for (((d, &p), &hi), &lo) in dst.iter_mut().zip(row).zip(hi).zip(lo) {
+            *d = is_dark(p, offset, hi.wrapping_sub(lo), count);
+        }
     }
 }
 
@@ -513,6 +538,34 @@ mod tests {
                     reference(&view, &p),
                     "{w}x{h} r{r}"
                 );
+            }
+        }
+    }
+
+    /// The `f32` comparison of [`dark_run`] against [`is_dark`] wherever
+    /// it is used, at every grey level and at the sums where the answer
+    /// turns, and the integer one beyond (the images of
+    /// `matches_the_reference` are too small to reach it).
+    #[test]
+    fn the_float_comparison_is_exact() {
+        for count in [1u32, 2, 441, 4_000, 32_000, 32_896, 32_897, 65_793, 160_801] {
+            for offset in [0u32, 1, 6, 128, 255] {
+                let (mut row, mut hi, mut lo) = (vec![], vec![], vec![]);
+                for p in 0..=255u8 {
+                    let edge = (u32::from(p) + offset) * count;
+                    for sum in [edge.saturating_sub(1), edge, edge + 1, 0, 255 * count] {
+                        row.push(p);
+                        // A wrapped difference, as the prefix sums give.
+                        hi.push(sum.wrapping_add(u32::MAX - 7));
+                        lo.push(u32::MAX - 7);
+                    }
+                }
+                let mut got = vec![9; row.len()];
+                dark_run(&row, &hi, &lo, count, offset, &mut got);
+                for (i, &g) in got.iter().enumerate() {
+                    let want = is_dark(row[i], offset, hi[i].wrapping_sub(lo[i]), count);
+                    assert_eq!(g, want, "count {count} offset {offset} p {}", row[i]);
+                }
             }
         }
     }
