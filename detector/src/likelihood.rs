@@ -378,17 +378,18 @@ const PROMISING_RATIO: f64 = 2.0;
 fn blur_axis(src: &[f64], n: usize, w: &[f64], vertical: bool) -> Vec<f64> {
     let mut out = vec![0.0; n * n];
     for (o, &wo) in w.iter().enumerate() {
-        // Cell k takes the term of cell k + o - REACH when that is inside.
-        let (from, to) = (REACH as usize, o);
-        let skip = from.saturating_sub(to);
-        let lead = to.saturating_sub(from);
+        // Cell k takes the term of cell k + o - REACH when that is inside:
+        // the cells from `skip` on take those from `lead` on, `len` of
+        // them (one of `skip` and `lead` is 0).
+        let reach = REACH as usize;
+        let (skip, lead) = (reach.saturating_sub(o), o.saturating_sub(reach));
         let len = n.saturating_sub(skip.max(lead));
         if len == 0 {
             continue;
         }
         if vertical {
             for k in skip..skip + len {
-                let row = &src[(k + lead - skip) * n..][..n];
+                let row = &src[(k - skip + lead) * n..][..n];
                 for (d, &v) in out[k * n..][..n].iter_mut().zip(row) {
                     *d += wo * v;
                 }

@@ -112,22 +112,36 @@ where
 /// outside the image.
 #[inline]
 pub(crate) fn sample_bilinear(img: &GrayView<'_>, x: f64, y: f64) -> Option<f64> {
+    inside_image(img, [x, y]).then(|| bilinear_inside(img)(x, y))
+}
+
+/// Whether pixel-centre point `p` lies in `img` (never in an empty one).
+#[inline]
+fn inside_image(img: &GrayView<'_>, p: [f64; 2]) -> bool {
     let (w, h) = (img.width(), img.height());
-    if !(x >= 0.0 && y >= 0.0 && x <= (w - 1) as f64 && y <= (h - 1) as f64) {
-        return None;
+    w > 0 && h > 0 && p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= (w - 1) as f64 && p[1] <= (h - 1) as f64
+}
+
+/// The bilinear sampler of [`sample_bilinear`] for points already known
+/// to lie in `img` ([`inside_image`]); the image's sizes are read once,
+/// for the many samples of a profile.
+#[inline(always)]
+fn bilinear_inside<'a>(img: &GrayView<'a>) -> impl Fn(f64, f64) -> f64 + 'a {
+    let (w, h, stride, raw) = (img.width(), img.height(), img.stride(), img.data());
+    let (xmax, ymax) = (w.saturating_sub(2), h.saturating_sub(2));
+    move |x, y| {
+        // x, y >= 0 here, so truncation is floor.
+        let x0 = (x as u32).min(xmax);
+        let y0 = (y as u32).min(ymax);
+        let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
+        let x1 = (x0 + 1).min(w - 1) as usize;
+        let y1 = (y0 + 1).min(h - 1) as usize;
+        let (x0, r0, r1) = (x0 as usize, y0 as usize * stride, y1 * stride);
+        let p = |i: usize| GREY_F64[usize::from(raw[i])];
+        let top = p(r0 + x0) * (1.0 - fx) + p(r0 + x1) * fx;
+        let bot = p(r1 + x0) * (1.0 - fx) + p(r1 + x1) * fx;
+        top * (1.0 - fy) + bot * fy
     }
-    // x, y >= 0 here, so truncation is floor.
-    let x0 = (x as u32).min(w.saturating_sub(2));
-    let y0 = (y as u32).min(h.saturating_sub(2));
-    let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
-    let x1 = (x0 + 1).min(w - 1) as usize;
-    let y1 = (y0 + 1).min(h - 1) as usize;
-    let (x0, y0, stride) = (x0 as usize, y0 as usize, img.stride());
-    let raw = img.data();
-    let p = |x: usize, y: usize| GREY_F64[usize::from(raw[y * stride + x])];
-    let top = p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx;
-    let bot = p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx;
-    Some(top * (1.0 - fy) + bot * fy)
 }
 
 /// Every grey level as an `f64`: a table look-up is cheaper than the
@@ -168,33 +182,18 @@ pub(crate) fn sample_profile(
         let t = f64::from(k) * step;
         [c[0] + t * n[0], c[1] + t * n[1]]
     };
-    let (w, h) = (img.width(), img.height());
-    let inside = |p: [f64; 2]| {
-        p[0] >= 0.0 && p[1] >= 0.0 && p[0] <= (w - 1) as f64 && p[1] <= (h - 1) as f64
-    };
     if k1 < k0 {
         return true;
     }
-    if !(inside(at(k0)) && inside(at(k1))) {
+    if !(inside_image(img, at(k0)) && inside_image(img, at(k1))) {
         return false;
     }
-    let (xmax, ymax) = (w.saturating_sub(2), h.saturating_sub(2));
-    let (stride, raw) = (img.stride(), img.data());
+    let sample = bilinear_inside(img);
     let start = out.len();
     out.resize(start + (k1 - k0) as usize + 1, 0.0);
     for (slot, k) in out[start..].iter_mut().zip(k0..) {
         let [x, y] = at(k);
-        // Inside the image: x, y >= 0, so truncation is floor.
-        let x0 = (x as u32).min(xmax);
-        let y0 = (y as u32).min(ymax);
-        let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
-        let x1 = (x0 + 1).min(w - 1) as usize;
-        let y1 = (y0 + 1).min(h - 1) as usize;
-        let (x0, r0, r1) = (x0 as usize, y0 as usize * stride, y1 * stride);
-        let p = |i: usize| GREY_F64[usize::from(raw[i])];
-        let top = p(r0 + x0) * (1.0 - fx) + p(r0 + x1) * fx;
-        let bot = p(r1 + x0) * (1.0 - fx) + p(r1 + x1) * fx;
-        *slot = top * (1.0 - fy) + bot * fy;
+        *slot = sample(x, y);
     }
     true
 }

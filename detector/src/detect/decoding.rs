@@ -180,8 +180,8 @@ fn attempt(
     })
 }
 
-/// Whether a reading of a data square taken inside an outline stands: a
-/// margin of [`UNFIT_MARGIN`] symbols below its family's limit, or the
+/// Whether a code reading of a data square taken inside an outline
+/// stands: one that would stand without a fit ([`stands_unfit`]), or the
 /// model fit supporting all four corners.
 fn outline_reading_stands(
     img: &GrayView<'_>,
@@ -189,7 +189,7 @@ fn outline_reading_stands(
     t: &Target,
     p: &DecodingParams,
 ) -> bool {
-    if d.corrected + UNFIT_MARGIN <= t.max_corrected {
+    if stands_unfit(d, t) {
         return true;
     }
     matches!(
