@@ -27,7 +27,7 @@
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
 use super::decoding::{
-    centre_of, decode_in_order, outcome, plan, DecodingParams, Found, Outcome, Target,
+    centre_of, decode_in_order, outcome, plan, DecodingParams, Found, Outcome, Plan, Target,
 };
 use super::parallel::Workers;
 use super::quads::Candidate;
@@ -267,7 +267,11 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
     // end of the frame (on the wild 1080p benchmark, decoding with 2
     // threads took 4.58 ms instead of 3.99).
     let wanted = |k: usize, found: &[Found]| {
-        !candidates[k].guessed && plan(&candidates[k], centres[k], found, p).is_some()
+        !candidates[k].guessed
+            && matches!(
+                plan(&candidates[k], centres[k], scale, found, p),
+                Plan::Decode(_)
+            )
     };
     let read = |k: usize| {
         let mut w = workers.scratch();
