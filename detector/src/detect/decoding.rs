@@ -377,10 +377,10 @@ pub(super) fn plan(
     found: &[Found],
     p: &DecodingParams,
 ) -> Plan {
-    let rival = found
+    let Some(r) = found
         .iter()
-        .position(|f| inside(&f.reading.det.corners, centre));
-    let Some(r) = rival else {
+        .position(|f| inside(&f.reading.det.corners, centre))
+    else {
         return Plan::Decode(None);
     };
     // A linked candidate (see `quads`) over a tag already read is
@@ -402,7 +402,7 @@ pub(super) fn plan(
     if side < RIVAL_MIN_SIDE * mean_side(&f.reading.det.corners) {
         return Plan::Dismiss(r);
     }
-    Plan::Decode(rival)
+    Plan::Decode(Some(r))
 }
 
 /// The sequential decoding loop: each candidate in turn skipped
@@ -425,16 +425,13 @@ pub(super) fn decode_in_order(
             break;
         }
         let centre = centre_of(cand, scale);
-        let rival = match plan(cand, centre, scale, &found, p) {
+        let (rival, outcome) = match plan(cand, centre, scale, &found, p) {
             Plan::Skip => continue,
-            Plan::Dismiss(r) => {
-                found[r].rivals += 1;
-                taken(j, &found);
-                continue;
-            }
-            Plan::Decode(rival) => rival,
+            // Dismissed unread, as if refused.
+            Plan::Dismiss(r) => (Some(r), Outcome::Refused),
+            Plan::Decode(rival) => (rival, outcome(j, centre)),
         };
-        match (rival, outcome(j, centre)) {
+        match (rival, outcome) {
             // A refused rival counts as one that did not read.
             (Some(r), Outcome::Refused) => found[r].rivals += 1,
             (None, Outcome::Refused) => {}
