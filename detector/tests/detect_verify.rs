@@ -239,11 +239,16 @@ fn grey_triangles(side: std::ops::Range<f64>, seed: u64) -> usize {
 /// triangle's edges, where the tag no longer read: right readings were
 /// dropped (7 of 40 found). Held near the reading's geometry on a second
 /// try, it confirms them (9), and a quad guessed from one corner and the
-/// centre checker forms where no other corner did (14).
+/// centre checker forms where no other corner did (14). Taking the blur
+/// bias off the refined sides (`edge_bias`; 2 points more of the wild
+/// benchmark's main subset) traded scenes 3 and 18 for scene 32 (13), and
+/// no longer holding readings near the code's limit to their own geometry
+/// (a wild-set reading was held 15 px off; see `verify::verify`) lost two
+/// more whose held fits were right (11).
 #[test]
 fn small_tags_under_a_grey_triangle_are_found() {
     let found = grey_triangles(30.0..44.0, 23);
-    assert!(found >= 14, "only {found} of 40 found");
+    assert!(found >= 11, "only {found} of 40 found");
 }
 
 /// Mid-sized tags, found at half resolution: both sides next to the hidden
@@ -296,4 +301,34 @@ fn small_code_readings_whose_fit_keeps_their_corners_stand() {
 #[test]
 fn occluded_tags_with_one_corner_in_view_though_estimated_are_found() {
     assert_eq!(crops_found("beside-hidden-crops.csv", 2.5).len(), 5);
+}
+
+/// A code reading near the code's limit is not held to its own geometry.
+/// A white triangle over a third of a 43 px tag (the wild benchmark's
+/// frame 1147, cropped) hides a corner and leaves the triangle's edge
+/// against the black disc looking like a side of the frame: the quad
+/// through it read the tag with 11 symbols corrected, its hidden corner
+/// 15 px off. Its free fit no longer read; the second fit, held near the
+/// quad, re-read the same cells and kept it, until such readings were
+/// given no second fit (`verify::verify`).
+#[test]
+fn a_reading_near_the_limit_is_not_held_to_a_wrong_corner() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wild");
+    let img = image::open(dir.join("crop-001147-1.png"))
+        .unwrap()
+        .to_luma8();
+    let truth = [
+        [97.311, 51.291],
+        [59.523, 72.870],
+        [82.537, 106.533],
+        [121.846, 84.558],
+    ];
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    for d in det.detect(&img) {
+        assert_eq!(d.id, 200, "a wrong id: {d:?}");
+        let err = corner_errors(&d.corners, &truth)
+            .into_iter()
+            .fold(0.0, f64::max);
+        assert!(err <= 3.0, "a corner {err:.1} px off: {d:?}");
+    }
 }

@@ -223,6 +223,9 @@ fn verify_reading(img: &GrayView<'_>, d: &Detection, t: &Target, p: &DecodingPar
         d.contrast,
         d.corrected,
         d.occluded,
+        // A code reading near the code's limit is not held to its own
+        // geometry (see `verify::verify`).
+        d.likelihood || stands_unfit(d, t),
         &p.decode,
     )
 }

@@ -44,6 +44,7 @@ mod contour_bands;
 pub(crate) mod contours;
 pub(crate) mod corners;
 pub(crate) mod decoding;
+mod edge_bias;
 pub(crate) mod ellipses;
 pub(crate) mod lines;
 mod outline;

@@ -8,7 +8,11 @@
 //! levels is taken as an edge point. For a symmetric blur that is where the
 //! printed edge is. A total least squares line through the edge points,
 //! refitted once without outliers, replaces the coarse line; this is done
-//! twice, the second time in a narrow window around the first result.
+//! twice, the second time in a narrow window around the first result. The
+//! margin is only a cell wide, though: once the blur reaches across it,
+//! the crossing lies outside the printed edge, and the second line is
+//! moved back inwards by the bias that a model of the side shows at the
+//! blur the first pass's profiles rose over (`edge_bias`).
 //!
 //! A corner's own line piece may cover only a little of its side (blur
 //! chamfers the corner, an occluder cuts the side), so from each measured
@@ -23,6 +27,7 @@
 //! the better seen side. The two estimated corners of a same-side quad are
 //! recomputed on the diagonals through the tag centre.
 
+use super::edge_bias::{self, BlurBias, Ruler};
 use super::quads::Candidate;
 use crate::math::{cross, dot, fit_line, intersect, norm, sample_profile, sub, to_full, unit};
 use crate::view::GrayView;
@@ -148,6 +153,8 @@ type Piece = ([f64; 2], [f64; 2]);
 #[derive(Debug, Default)]
 pub(crate) struct RefineScratch {
     edge: Vec<[f64; 2]>,
+    /// Rise widths (px) of the edge points of the last side fitted.
+    widths: Vec<f64>,
     profile: Vec<f64>,
 }
 
@@ -174,6 +181,7 @@ pub(crate) fn refine_candidate(
     };
     let full = |seg: [[f64; 2]; 2]| (to_full(seg[0], scale), to_full(seg[1], scale));
     let mut sides: [Option<SideLine>; 4] = [None; 4];
+    let mut table = None;
     for (i, side) in sides.iter_mut().enumerate() {
         let j = (i + 1) % 4;
         // Side i runs from corner i (its outgoing piece) to corner j (its
@@ -210,8 +218,14 @@ pub(crate) fn refine_candidate(
             *side = Some(coarse);
             continue;
         }
-        let mut line = fit_side(&g, &coarse, &segs, Pass::Wide, s)
-            .and_then(|l| fit_side(&g, &l, &segs, Pass::Narrow, s).or(Some(l)))
+        let wide = fit_side(&g, &coarse, &segs, Pass::Wide, s);
+        let bias = blur_bias(&g, &mut s.widths, &mut table);
+        let mut line = wide
+            .and_then(|l| {
+                fit_side(&g, &l, &segs, Pass::Narrow, s)
+                    .map(|l| inwards(l, bias))
+                    .or(Some(l))
+            })
             .unwrap_or(coarse);
         // The corner's own line piece can be short (a chamfer where blur
         // rounds the corner, or a side cut by an occluder); follow the
@@ -232,7 +246,7 @@ pub(crate) fn refine_candidate(
         if from_i.is_some() || from_j.is_some() {
             let spans = [from_i.or(segs[0]), from_j.or(segs[1])];
             if let Some(l) = fit_side(&g, &line, &spans, Pass::Narrow, s) {
-                line = l;
+                line = inwards(l, bias);
             }
         }
         *side = Some(line);
@@ -329,6 +343,63 @@ struct Gauge<'i, 'p> {
     params: &'p RefineParams,
 }
 
+/// The windows and sampling step of a pass over a side of a candidate.
+fn ruler(g: &Gauge<'_, '_>, pass: Pass) -> Ruler {
+    match pass {
+        // The coarse line is up to a working pixel off: slack for it.
+        Pass::Wide => Ruler {
+            white: window(WIDE_WHITE, g.cell) + g.scale,
+            black: window(WIDE_BLACK, g.cell) + g.scale,
+            step: WIDE_STEP,
+        },
+        Pass::Narrow => {
+            let w = window(NARROW, g.cell);
+            Ruler {
+                white: w,
+                black: w,
+                step: NARROW_STEP,
+            }
+        }
+    }
+}
+
+/// Blur (Gaussian sigma, in cells) under which a side's bias is left
+/// alone: there the margin keeps its white and the model's bias stays
+/// under 0.03 px. The profiles' rise then shows at most
+/// [`edge_bias::GAUSS_QUARTILE_SPAN`] times that blur, and a sharp
+/// candidate's sides cost no model at all.
+const SHARP_SIGMA_CELLS: f64 = 0.3;
+
+/// How far (px) the narrow pass measures a side outwards of the printed
+/// edge under the blur that the wide pass's rises `widths` showed
+/// ([`edge_bias`]); zero when they showed little. `table` is the
+/// candidate's, made on its first blurred side.
+fn blur_bias(g: &Gauge<'_, '_>, widths: &mut [f64], table: &mut Option<Option<BlurBias>>) -> f64 {
+    if widths.is_empty() {
+        return 0.0;
+    }
+    widths.sort_by(f64::total_cmp);
+    let width = widths[widths.len() / 2];
+    if width <= edge_bias::GAUSS_QUARTILE_SPAN * SHARP_SIGMA_CELLS * g.cell {
+        return 0.0;
+    }
+    table
+        .get_or_insert_with(|| {
+            BlurBias::new(g.cell, &ruler(g, Pass::Wide), &ruler(g, Pass::Narrow))
+        })
+        .as_ref()
+        .map_or(0.0, |t| t.at(width))
+}
+
+/// `line` moved `by` px towards the data square's inside (its left).
+fn inwards(line: SideLine, by: f64) -> SideLine {
+    let n = [-line.d[1], line.d[0]];
+    SideLine {
+        p: [line.p[0] - by * n[0], line.p[1] - by * n[1]],
+        ..line
+    }
+}
+
 /// `cell`-relative size `(factor, min, max)` of a window, in px.
 #[inline]
 fn window((factor, lo, hi): (f64, f64, f64), cell: f64) -> f64 {
@@ -347,25 +418,16 @@ fn fit_side(
     let (img, cell, scale) = (g.img, g.cell, g.scale);
     // Right normal: towards the black frame.
     let n = [-line.d[1], line.d[0]];
-    let (w_white, w_black, step) = if pass == Pass::Wide {
-        let slack = scale;
-        (
-            window(WIDE_WHITE, cell) + slack,
-            window(WIDE_BLACK, cell) + slack,
-            WIDE_STEP,
-        )
-    } else {
-        let w = window(NARROW, cell);
-        (w, w, NARROW_STEP)
-    };
+    let r = ruler(g, pass);
     let margin = END_MARGIN_PX + (END_MARGIN_CELLS * cell).min(END_MARGIN_MAX) + scale;
     let profile = Profile {
-        w_white,
-        w_black,
-        step,
+        w_white: r.white,
+        w_black: r.black,
+        step: r.step,
         min_contrast: g.params.min_edge_contrast,
     };
     s.edge.clear();
+    s.widths.clear();
     // Where both corners of the side were formed on the same line piece
     // (every side of an unbroken quad), the two pieces are one: it is
     // measured once (refinement was a fifth of a clean frame's time) and
@@ -385,8 +447,9 @@ fn fit_side(
         for k in 0..count {
             let t = t0 + (t1 - t0) * (k as f64 + 0.5) / count as f64;
             let c = [line.p[0] + t * line.d[0], line.p[1] + t * line.d[1]];
-            if let Some(off) = edge_crossing(img, c, n, &profile, &mut s.profile) {
+            if let Some((off, width)) = edge_crossing(img, c, n, &profile, &mut s.profile) {
                 s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
+                s.widths.push(width);
             }
         }
     }
@@ -454,6 +517,7 @@ fn track(
     while t < reach {
         let c = [o[0] + t * d[0], o[1] + t * d[1]];
         let seen = edge_crossing(img, c, n, &profile, &mut s.profile)
+            .map(|(off, _)| off)
             .filter(|off| off.abs() <= TRACK_MAX_OFFSET);
         if let Some(off) = seen {
             s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
@@ -506,7 +570,7 @@ fn edge_crossing(
     n: [f64; 2],
     p: &Profile,
     prof: &mut Vec<f64>,
-) -> Option<f64> {
+) -> Option<(f64, f64)> {
     let step = p.step;
     prof.clear();
     let k0 = -(p.w_white / step).round() as i32;
@@ -521,18 +585,22 @@ fn edge_crossing(
         return None;
     }
     let level = 0.5 * (white + black);
-    let mut best: Option<f64> = None;
+    let mut best: Option<(f64, f64)> = None;
     for i in 0..prof.len() - 1 {
         let (u, v) = (prof[i], prof[i + 1]);
         if u >= level && v < level {
             let f = (u - level) / (u - v);
             let t = (f64::from(k0) + i as f64 + f) * step;
-            if best.is_none_or(|b| t.abs() < b.abs()) {
-                best = Some(t);
+            if best.is_none_or(|(b, _)| t.abs() < b.abs()) {
+                best = Some((t, i as f64 + f));
             }
         }
     }
-    best
+    let (t, at) = best?;
+    Some((
+        t,
+        edge_bias::rise_width(prof, black, white - black, at) * step,
+    ))
 }
 
 /// The line through the edge points (at least [`MIN_EDGE_POINTS`]), with
