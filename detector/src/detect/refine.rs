@@ -425,6 +425,7 @@ fn fit_side(
         w_black: r.black,
         step: r.step,
         min_contrast: g.params.min_edge_contrast,
+        rise: pass == Pass::Wide,
     };
     s.edge.clear();
     s.widths.clear();
@@ -449,7 +450,9 @@ fn fit_side(
             let c = [line.p[0] + t * line.d[0], line.p[1] + t * line.d[1]];
             if let Some((off, width)) = edge_crossing(img, c, n, &profile, &mut s.profile) {
                 s.edge.push([c[0] + off * n[0], c[1] + off * n[1]]);
-                s.widths.push(width);
+                if profile.rise {
+                    s.widths.push(width);
+                }
             }
         }
     }
@@ -506,6 +509,7 @@ fn track(
         w_black: w,
         step: TRACK_STEP,
         min_contrast: g.params.min_edge_contrast,
+        rise: false,
     };
     let gap = (TRACK_GAP_CELLS * cell).max(TRACK_GAP_MIN);
     let step = (reach / TRACK_PROBES).clamp(TRACK_MIN_STEP, gap / TRACK_PROBES_PER_GAP);
@@ -559,11 +563,15 @@ struct Profile {
     w_black: f64,
     step: f64,
     min_contrast: f64,
+    /// Whether to measure the rise's width too (the wide pass's, which
+    /// gives the side's blur): the other passes do without it.
+    rise: bool,
 }
 
 /// Offset along `n` from `c` where the grey profile crosses halfway between
 /// its white (negative side) and black (positive side) levels, nearest to
-/// 0. `None` without contrast or crossing.
+/// 0, and the width (px) of the profile's rise there (NaN unless
+/// [`Profile::rise`]). `None` without contrast or crossing.
 fn edge_crossing(
     img: &GrayView<'_>,
     c: [f64; 2],
@@ -597,10 +605,12 @@ fn edge_crossing(
         }
     }
     let (t, at) = best?;
-    Some((
-        t,
-        edge_bias::rise_width(prof, black, white - black, at) * step,
-    ))
+    let width = if p.rise {
+        edge_bias::rise_width(prof, black, white - black, at) * step
+    } else {
+        f64::NAN
+    };
+    Some((t, width))
 }
 
 /// The line through the edge points (at least [`MIN_EDGE_POINTS`]), with
