@@ -7,12 +7,14 @@
 //! - the median or p95 real-corner error grows by more than
 //!   [`Tolerances::corner_px`] or [`Tolerances::corner_fraction`] of its
 //!   baseline, whichever is larger;
-//! - our time relative to a peer's, measured on the same frames in one
+//! - our time relative to the peers', measured on the same frames in one
 //!   interleaved run ([`crate::speed`]), has grown by more than
-//!   [`Tolerances::time_ratio`] beyond doubt: the whole noise band of the
-//!   ratio lies above the baseline ratio times `1 + time_ratio`. Absolute
+//!   [`Tolerances::time_ratio`] beyond doubt against most of them: the
+//!   median over the peers of the low end of each ratio's noise band over
+//!   its baseline ratio exceeds `1 + time_ratio` ([`SpeedCheck`]). Absolute
 //!   times differ between machines, ratios much less; a band rather than a
-//!   point keeps a busy machine from failing unchanged code;
+//!   point keeps a busy machine from failing unchanged code, and the
+//!   median over peers keeps one peer's own drift from failing it;
 //! - for a system with a wild entry (the quick slice of the sampled
 //!   "wild" sets, [`crate::wild_summary`]): the slice is not the same
 //!   (another count of markers or tag-free images), its detection rate
@@ -292,7 +294,7 @@ pub fn check_wild(baseline: &Baseline, wild: &WildSummary) -> Vec<String> {
     fails
 }
 
-/// One peer's speed verdict.
+/// One peer's line of the speed check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SpeedVerdict {
     /// Peer name.
@@ -301,10 +303,20 @@ pub struct SpeedVerdict {
     pub was: f64,
     /// This run's ratio and noise band (`None`: not measured).
     pub now: Option<RatioEstimate>,
-    /// Largest ratio allowed.
+    /// The peer's own limit: the baseline ratio times `1 + time_ratio`.
     pub allowed: f64,
-    /// Whether the whole band lies above `allowed` (or the peer is missing).
-    pub failed: bool,
+    /// Whether the whole band lies above `allowed` (or the peer is
+    /// missing). One peer above its limit does not fail the gate by
+    /// itself: see [`SpeedCheck`].
+    pub above: bool,
+}
+
+impl SpeedVerdict {
+    /// This run's ratio over the baseline's, at the low end of the band
+    /// (`None`: not measured, or no band).
+    fn growth_low(&self) -> Option<f64> {
+        self.now.map(|n| n.low / self.was).filter(|g| g.is_finite())
+    }
 }
 
 impl std::fmt::Display for SpeedVerdict {
@@ -314,38 +326,113 @@ impl std::fmt::Display for SpeedVerdict {
             Some(n) => write!(
                 f,
                 "time vs {}: our time is {:.3}x the peer's (95% band {:.3}x-{:.3}x), baseline {:.3}x, \
-                 fails only if the band lies wholly above {:.3}x: {}",
+                 limit {:.3}x: {}",
                 self.peer,
                 n.median,
                 n.low,
                 n.high,
                 self.was,
                 self.allowed,
-                if self.failed { "FAILED" } else { "ok" }
+                if self.above {
+                    "band wholly above"
+                } else {
+                    "ok"
+                }
             ),
         }
     }
 }
 
-/// Compares a speed measurement with the baseline's ratios: a peer fails
-/// when the low end of this run's band exceeds the baseline ratio times
-/// `1 + tol.time_ratio`, or when it was not measured.
-pub fn check_speed(baseline: &Baseline, speed: &SpeedReport, tol: Tolerances) -> Vec<SpeedVerdict> {
-    baseline
+/// The speed half of the gate: every peer's line, and the verdict.
+///
+/// A slowdown of ours lengthens our time against every peer alike; a
+/// change in one peer's own time (its package, how a machine treats its
+/// kind of code, the load while it ran) moves that peer's ratio alone, and
+/// between runs on unchanged code such moves were larger than any
+/// tolerance a real slowdown could be caught with. Measured in two clean
+/// clones' CI runs of the same detector, a day apart, against a baseline
+/// made on a busy machine: ours over STag's grew 1.13x and then 1.38x
+/// (twice, measured again), while ours over AprilTag 3's grew 1.04x and
+/// 1.05x and ours over the fractal marker's shrank to 0.84x. So the gate
+/// judges the peers together: it fails when the median over the peers of
+/// each one's growth at the low end of its band (this run's band's low
+/// end over the baseline ratio) exceeds `1 + time_ratio`, that is when
+/// our time grew beyond doubt against most peers. With four peers, one
+/// peer drifting alone, in either direction, cannot decide it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SpeedCheck {
+    /// One line per peer of the baseline.
+    pub peers: Vec<SpeedVerdict>,
+    /// Median over the measured peers of [`SpeedVerdict`]'s growth at the
+    /// low end of the band (NaN when no peer was measured).
+    pub growth_low: f64,
+    /// Largest growth allowed: `1 + time_ratio`.
+    pub allowed: f64,
+    /// Whether the gate fails on speed: the median growth exceeds
+    /// `allowed`, or a peer of the baseline was not measured (or measured
+    /// on no frames), which proves nothing.
+    pub failed: bool,
+}
+
+impl std::fmt::Display for SpeedCheck {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let missing: Vec<&str> = self
+            .peers
+            .iter()
+            .filter(|v| v.growth_low().is_none())
+            .map(|v| v.peer.as_str())
+            .collect();
+        write!(
+            f,
+            "time against the peers: median growth over the baseline {:.3}x at the low end of \
+             the bands, fails above {:.3}x",
+            self.growth_low, self.allowed
+        )?;
+        if !missing.is_empty() {
+            write!(f, "; not measured: {}", missing.join(", "))?;
+        }
+        write!(f, ": {}", if self.failed { "FAILED" } else { "ok" })
+    }
+}
+
+/// Compares a speed measurement with the baseline's ratios (see
+/// [`SpeedCheck`]).
+pub fn check_speed(baseline: &Baseline, speed: &SpeedReport, tol: Tolerances) -> SpeedCheck {
+    let peers: Vec<SpeedVerdict> = baseline
         .speed_ratio_vs
         .iter()
         .map(|(peer, was)| {
             let allowed = was.median * (1.0 + tol.time_ratio);
             let now = speed.peers.get(peer).map(|p| p.ratio);
-            // A NaN band (no frames) fails too: it proves nothing.
-            let failed = now.is_none_or(|n| n.low.is_nan() || n.low > allowed);
+            let above = now.is_none_or(|n| n.low.is_nan() || n.low > allowed);
             SpeedVerdict {
                 peer: peer.clone(),
                 was: was.median,
                 now,
                 allowed,
-                failed,
+                above,
             }
         })
-        .collect()
+        .collect();
+    let mut growth: Vec<f64> = peers.iter().filter_map(SpeedVerdict::growth_low).collect();
+    let growth_low = median(&mut growth);
+    let allowed = 1.0 + tol.time_ratio;
+    let complete = growth.len() == peers.len();
+    let failed = !peers.is_empty() && (!complete || growth_low.is_nan() || growth_low > allowed);
+    SpeedCheck {
+        peers,
+        growth_low,
+        allowed,
+        failed,
+    }
+}
+
+/// Median of `v` (NaN when empty).
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    match v.len() {
+        0 => f64::NAN,
+        n if n % 2 == 1 => v[n / 2],
+        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
 }

@@ -23,14 +23,18 @@
 //!    repetitions, and takes the 2.5th and 97.5th percentiles of the
 //!    resampled medians (Efron and Tibshirani, "An Introduction to the
 //!    Bootstrap", 1993, percentile interval). The gate
-//!    ([`crate::gate::check_speed`]) fails only when the whole band lies
-//!    above the allowed ratio.
+//!    ([`crate::gate::check_speed`]) judges the peers together: it fails
+//!    only when the median over the peers of each band's low end, over
+//!    that peer's baseline ratio, exceeds the allowed growth (a slowdown
+//!    of ours shows against every peer; one peer's own drift shows
+//!    against that peer alone).
 //!
 //! 6. **A failure is measured twice.** A burst of load that lands on one
 //!    side more than the other (a compiler finishing, the page cache
 //!    refilling after a build) can still push one measurement's whole band
-//!    over the limit on unchanged code. [`confirm_failures`] measures every
-//!    peer that failed once more, as an independent block, and keeps both:
+//!    over the limit on unchanged code. When the check fails,
+//!    [`confirm_failures`] measures every peer above its limit once more,
+//!    as an independent block, and keeps both:
 //!    the gate fails only when the second measurement fails too. A real
 //!    slowdown fails both; a one-off blip fails one.
 //!
@@ -190,21 +194,29 @@ pub struct SpeedReport {
     pub first_attempts: BTreeMap<String, PeerSpeed>,
 }
 
-/// Measures again every peer of `report` whose whole band lies above its
-/// limit in `baseline` (see [`crate::gate::check_speed`]):
+/// Measures again, when `report` fails the speed check against
+/// `baseline` ([`crate::gate::check_speed`]), every peer whose whole band
+/// lies above its own limit (those that made it fail):
 /// `measure_again(peer)` makes a fresh, independent measurement, which
 /// replaces the first in `report.peers`; the first goes to
-/// `report.first_attempts`. Peers missing from the report are not measured
-/// (the gate fails them as they are). Returns the peers measured again.
+/// `report.first_attempts`. A report that passes is left alone, even with
+/// one peer above its limit: that peer alone cannot fail the gate. Peers
+/// missing from the report are not measured (the gate fails them as they
+/// are). Returns the peers measured again.
 pub fn confirm_failures(
     report: &mut SpeedReport,
     baseline: &crate::gate::Baseline,
     tol: crate::gate::Tolerances,
     mut measure_again: impl FnMut(&str) -> Result<PeerSpeed>,
 ) -> Result<Vec<String>> {
-    let failed: Vec<String> = crate::gate::check_speed(baseline, report, tol)
+    let check = crate::gate::check_speed(baseline, report, tol);
+    if !check.failed {
+        return Ok(Vec::new());
+    }
+    let failed: Vec<String> = check
+        .peers
         .into_iter()
-        .filter(|v| v.failed && v.now.is_some())
+        .filter(|v| v.above && v.now.is_some())
         .map(|v| v.peer)
         .collect();
     for peer in &failed {

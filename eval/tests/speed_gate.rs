@@ -1,11 +1,12 @@
-//! The speed half of the regression gate on a saved, real measurement
-//! (`coppertag speed` on the QUICK sets, ci profile, this 2-core machine
-//! while two compilers ran beside it): the run passes against a baseline
-//! made from itself, and the same frames with our times scaled the way a
-//! real slowdown would scale them fail once the slowdown exceeds the
-//! tolerance, while smaller drifts do not.
+//! The speed half of the regression gate on saved, real measurements
+//! (`coppertag speed` on the QUICK sets, ci profile, this 2-core machine):
+//! a run passes against a baseline made from itself, and the same frames
+//! with our times scaled the way a real slowdown would scale them fail
+//! once the slowdown exceeds the tolerance, while smaller drifts, and one
+//! peer drifting alone, do not. The second run is the clean clone's CI run
+//! of commit 43cabe9 that the per-peer rule failed on unchanged code.
 
-use coppertag_eval::gate::{baseline_of, check_speed, Tolerances};
+use coppertag_eval::gate::{baseline_of, check_speed, Baseline, Tolerances};
 use coppertag_eval::speed::{confirm_failures, estimate, SpeedReport};
 
 mod common;
@@ -13,6 +14,26 @@ mod common;
 fn saved_run() -> SpeedReport {
     let text = include_str!("fixtures/speed-run.json");
     serde_json::from_str(text).expect("the fixture is a speed report")
+}
+
+/// The CI run of 43cabe9 (a clean clone, `make test`; STag was measured
+/// twice, both bands above the per-peer limit) and the baseline it was
+/// checked against (made the day before on a busy machine).
+fn drifted_run() -> (SpeedReport, Baseline) {
+    let run = serde_json::from_str(include_str!("fixtures/speed-run-drift.json"))
+        .expect("the fixture is a speed report");
+    let baseline = serde_json::from_str(include_str!("fixtures/speed-baseline-drift.json"))
+        .expect("the fixture is a baseline");
+    (run, baseline)
+}
+
+/// `run` with our times against `peer` alone multiplied by `factor`: what
+/// a change in that peer's own time by `1 / factor` would have measured.
+fn one_peer_scaled(run: &SpeedReport, peer: &str, factor: f64) -> SpeedReport {
+    let mut out = run.clone();
+    let p = out.peers.get_mut(peer).expect("the peer was measured");
+    p.ratio = estimate(&p.frames, run.options.resamples, run.options.seed, factor);
+    out
 }
 
 /// The saved run with our times multiplied by `factor`, estimated anew.
@@ -41,19 +62,27 @@ fn the_saved_run_passes_against_itself_with_bands_around_the_median() {
         );
     }
     let baseline = baseline_of(&[], Some(&run), None, "test");
-    let verdicts = check_speed(&baseline, &run, Tolerances::default());
-    assert_eq!(verdicts.len(), 3);
-    assert!(verdicts.iter().all(|v| !v.failed), "{verdicts:?}");
+    let check = check_speed(&baseline, &run, Tolerances::default());
+    assert_eq!(check.peers.len(), 3);
+    assert!(
+        !check.failed && check.peers.iter().all(|v| !v.above),
+        "{check:?}"
+    );
+    // Against itself, the low ends of the bands lie below their medians.
+    assert!(check.growth_low < 1.0, "{check:?}");
+    assert!(check.to_string().ends_with(": ok"), "{check}");
 }
 
 #[test]
 fn a_forty_percent_slowdown_fails_for_every_peer() {
     let run = saved_run();
     let baseline = baseline_of(&[], Some(&run), None, "test");
-    let verdicts = check_speed(&baseline, &slowed(&run, 1.4), Tolerances::default());
-    for v in &verdicts {
-        assert!(v.failed, "not caught: {v}");
-        assert!(v.to_string().contains("FAILED"), "{v}");
+    let check = check_speed(&baseline, &slowed(&run, 1.4), Tolerances::default());
+    assert!(check.failed, "not caught: {check}");
+    assert!(check.to_string().contains("FAILED"), "{check}");
+    for v in &check.peers {
+        assert!(v.above, "not above its limit: {v}");
+        assert!(v.to_string().contains("band wholly above"), "{v}");
     }
 }
 
@@ -61,8 +90,52 @@ fn a_forty_percent_slowdown_fails_for_every_peer() {
 fn a_ten_percent_drift_is_inside_the_tolerance() {
     let run = saved_run();
     let baseline = baseline_of(&[], Some(&run), None, "test");
-    let verdicts = check_speed(&baseline, &slowed(&run, 1.1), Tolerances::default());
-    assert!(verdicts.iter().all(|v| !v.failed), "{verdicts:?}");
+    let check = check_speed(&baseline, &slowed(&run, 1.1), Tolerances::default());
+    assert!(!check.failed, "{check:?}");
+}
+
+#[test]
+fn one_peer_drifting_alone_fails_nothing_and_is_not_measured_again() {
+    let run = saved_run();
+    let baseline = baseline_of(&[], Some(&run), None, "test");
+    let tol = Tolerances::default();
+    // STag's own time 40% shorter: ours over STag's 1.67x the baseline.
+    let mut drift = one_peer_scaled(&run, "stag", 1.0 / 0.6);
+    let check = check_speed(&baseline, &drift, tol);
+    let stag = check.peers.iter().find(|v| v.peer == "stag").unwrap();
+    assert!(stag.above, "{stag}");
+    assert!(!check.failed, "{check}");
+    let again = confirm_failures(&mut drift, &baseline, tol, |peer| {
+        panic!("{peer} was measured again although the check passed")
+    })
+    .unwrap();
+    assert!(again.is_empty() && drift.first_attempts.is_empty());
+    // Against two of the three peers, the same growth is ours: it fails.
+    let two = one_peer_scaled(&drift, "aruco3", 1.0 / 0.6);
+    assert!(check_speed(&baseline, &two, tol).failed);
+}
+
+#[test]
+fn the_run_that_failed_on_unchanged_code_passes_and_its_slowdown_does_not() {
+    let (run, baseline) = drifted_run();
+    assert_eq!(run.peers.len(), 4);
+    assert_eq!(run.first_attempts.len(), 1, "STag was measured twice");
+    let tol = Tolerances::default();
+    let check = check_speed(&baseline, &run, tol);
+    // STag's band lay wholly above its own limit (0.129x against 0.119x),
+    // twice; the others were within theirs.
+    for v in &check.peers {
+        assert_eq!(v.above, v.peer == "stag", "{v}");
+    }
+    assert!(!check.failed, "{check}");
+    assert!(
+        (1.0..1.1).contains(&check.growth_low),
+        "median growth {}",
+        check.growth_low
+    );
+    // The same frames with ours 1.4x slower fail.
+    let check = check_speed(&baseline, &slowed(&run, 1.4), tol);
+    assert!(check.failed, "{check}");
 }
 
 #[test]
@@ -71,9 +144,11 @@ fn a_peer_missing_from_the_run_fails() {
     let baseline = baseline_of(&[], Some(&run), None, "test");
     let mut partial = run.clone();
     partial.peers.remove("stag");
-    let verdicts = check_speed(&baseline, &partial, Tolerances::default());
-    let stag = verdicts.iter().find(|v| v.peer == "stag").unwrap();
-    assert!(stag.failed && stag.now.is_none());
+    let check = check_speed(&baseline, &partial, Tolerances::default());
+    assert!(check.failed, "{check}");
+    assert!(check.to_string().contains("not measured: stag"), "{check}");
+    let stag = check.peers.iter().find(|v| v.peer == "stag").unwrap();
+    assert!(stag.above && stag.now.is_none());
     assert!(stag.to_string().contains("not measured"));
 }
 
@@ -102,7 +177,7 @@ fn only_failing_peers_are_measured_again_and_the_second_measurement_decides() {
     .unwrap();
     assert_eq!(again.len(), 3, "{again:?}");
     assert_eq!(blip.first_attempts.len(), 3);
-    assert!(check_speed(&baseline, &blip, tol).iter().all(|v| !v.failed));
+    assert!(!check_speed(&baseline, &blip, tol).failed);
     // The first measurement is kept in the report, as measured.
     let slow = slowed(&run, 1.4);
     assert_eq!(blip.first_attempts["stag"], slow.peers["stag"]);
@@ -113,8 +188,11 @@ fn only_failing_peers_are_measured_again_and_the_second_measurement_decides() {
         Ok(slow.peers[peer].clone())
     })
     .unwrap();
-    let verdicts = check_speed(&baseline, &real, tol);
-    assert!(verdicts.iter().all(|v| v.failed), "{verdicts:?}");
+    let check = check_speed(&baseline, &real, tol);
+    assert!(
+        check.failed && check.peers.iter().all(|v| v.above),
+        "{check:?}"
+    );
 
     // A failing re-measurement is an error, not a pass.
     let mut broken = slowed(&run, 1.4);

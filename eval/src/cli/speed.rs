@@ -20,8 +20,9 @@ use super::progress::bar;
     coppertag and a peer both ran, up to --frames-per-sweep frames are timed with ours and the peer\n\
     back to back, --reps rounds; per frame the best of the rounds counts. The ratio printed is the\n\
     median over frames of ours/peer, with a 95% bootstrap band that resamples frames and rounds.\n\
-    With --confirm-against, every peer whose whole band lies above the baseline's limit is measured a\n\
-    second time; the output keeps both, and `coppertag gate` checks the second.")]
+    With --confirm-against, when the run fails the gate's speed check against that baseline, every\n\
+    peer whose whole band lies above the baseline's limit is measured a second time; the output keeps\n\
+    both, and `coppertag gate` checks the second.")]
 pub struct SpeedArgs {
     /// Work directory of a `coppertag reproduce` run (its `datasets/` is used).
     #[arg(long, default_value = "build/quick")]
@@ -57,9 +58,10 @@ pub struct SpeedArgs {
     #[arg(long, default_value_t = 1.0)]
     pub slowdown: f64,
 
-    /// Baseline (JSON, as `coppertag gate` reads it): measure again, once,
-    /// every peer whose whole band lies above its limit there, so that a
-    /// burst of load on one measurement does not fail the gate alone.
+    /// Baseline (JSON, as `coppertag gate` reads it): when the run fails
+    /// the gate's speed check against it, measure again, once, every peer
+    /// whose whole band lies above its limit there, so that a burst of load
+    /// on one measurement does not fail the gate alone.
     #[arg(long, value_name = "BASELINE")]
     pub confirm_against: Option<PathBuf>,
 
