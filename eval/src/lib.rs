@@ -35,6 +35,7 @@ pub mod speed;
 pub mod truth;
 pub mod wild;
 pub mod wild_report;
+pub mod wild_scenarios;
 pub mod wild_summary;
 
 pub use error::{EvalError, Result};

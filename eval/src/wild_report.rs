@@ -1,5 +1,5 @@
 //! The "wild" section of `reports/README.md`: the sampled-scene benchmark's
-//! table (a row per system) and its factor curves, each figure with a
+//! table (a row per system), the detector issue's scenarios and its factor curves, each figure with a
 //! sentence saying what it shows; CSVs beside them.
 
 use std::fmt::Write as _;
@@ -10,6 +10,7 @@ use crate::error::Result;
 use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
 use crate::sigma::{SigmaCoverage, SIGMA_MULTIPLE};
+use crate::wild_scenarios::{scenarios_csv, scenarios_table};
 use crate::wild_summary::{FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_RATE};
 
 fn display(system: &str) -> String {
@@ -319,8 +320,20 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
          issue asks CopperTag for at least 90%).{}",
         sigma_sentence(w)
     );
+    if !w.scenarios.is_empty() {
+        let systems: Vec<String> = w.systems.iter().map(|r| r.system.clone()).collect();
+        out.push_str(
+            "\n### The detector issue's scenarios\n\n\
+             Share found, with the markers counted and the rough detections among those found, on the \
+             scenarios the detector issue sets its bars on (the bar is what it asks of CopperTag), then the \
+             first row's markers split four ways, in this order: a glare spot on the marker; else heavy blur; \
+             else an occluder; else none of these. Coverage is the occluded share of the marker square.\n\n",
+        );
+        out.push_str(&scenarios_table(&w.scenarios, &systems, display));
+    }
     out.push_str(
-        "\nPer-system figures in `wild-systems.csv`, factor bins in `wild-factors.csv`.\n\n",
+        "\nPer-system figures in `wild-systems.csv`, scenarios in `wild-scenarios.csv`, factor bins in \
+         `wild-factors.csv`.\n\n",
     );
     for c in &w.factors {
         if c.bins.is_some() {
@@ -331,5 +344,9 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
     }
     write_atomic_in_new_dir(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
     write_atomic_in_new_dir(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
+    write_atomic_in_new_dir(
+        &dir.join("wild-scenarios.csv"),
+        scenarios_csv(&w.scenarios).as_bytes(),
+    )?;
     Ok(out)
 }

@@ -32,6 +32,7 @@ use crate::pose_error::{angle_between, rotation_of};
 use crate::report::SYSTEMS;
 use crate::sigma::SigmaCoverage;
 use crate::wild::{MarkerOutcome, Status, WildRun, SIDE_FACTOR};
+use crate::wild_scenarios::{scenario_rows, ScenarioRow};
 
 /// Fewest found renders of a scene for its jitter to be measured.
 pub const JITTER_MIN_RENDERS: usize = 2;
@@ -154,6 +155,10 @@ pub struct WildSummary {
     pub systems: Vec<SystemRow>,
     /// One curve per factor, by name.
     pub factors: Vec<FactorCurve>,
+    /// The scenarios and the main one's breakdown, per system
+    /// ([`crate::wild_scenarios`]).
+    #[serde(default)]
+    pub scenarios: Vec<ScenarioRow>,
 }
 
 /// Systems in report order ([`SYSTEMS`]: the paper's four, then the
@@ -379,6 +384,12 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
         datasets,
         systems: rows,
         factors: curves,
+        scenarios: scenario_rows(&systems, |sys| {
+            runs.iter()
+                .filter(|r| r.detector == sys && !r.tag_free)
+                .flat_map(counted)
+                .collect()
+        }),
     }
 }
 

@@ -12,6 +12,7 @@ use coppertag_eval::runlog::RunLog;
 use coppertag_eval::shard;
 use coppertag_eval::truth::Dataset;
 use coppertag_eval::wild;
+use coppertag_eval::wild_scenarios::scenarios_csv;
 use coppertag_eval::wild_summary::{summarise, WildSummary};
 
 #[derive(Args, Debug)]
@@ -51,7 +52,7 @@ pub struct EvalArgs {
     /// detections, pose error, jitter, false positives per megapixel,
     /// factor curves from draws.csv, and the share of corners within 2
     /// sigma for detectors that report a corner sigma, printed too):
-    /// writes wild.json, wild-systems.csv and wild-factors.csv.
+    /// writes wild.json, wild-systems.csv, wild-factors.csv and wild-scenarios.csv.
     #[arg(long)]
     pub wild: bool,
 
@@ -240,12 +241,17 @@ pub fn evaluate_wild(loaded: &[Loaded], rule: MatchRule) -> (WildSummary, Vec<St
     (summarise(&runs), errors)
 }
 
-/// Writes wild.json, wild-systems.csv and wild-factors.csv into `dir`.
+/// Writes wild.json, wild-systems.csv, wild-factors.csv and
+/// wild-scenarios.csv into `dir`.
 pub fn write_wild(dir: &Path, w: &WildSummary) -> Result<()> {
     let json = serde_json::to_string_pretty(w)?;
     write_atomic(&dir.join("wild.json"), json.as_bytes())?;
     write_atomic(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
     write_atomic(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
+    write_atomic(
+        &dir.join("wild-scenarios.csv"),
+        scenarios_csv(&w.scenarios).as_bytes(),
+    )?;
     Ok(())
 }
 
