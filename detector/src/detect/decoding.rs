@@ -315,13 +315,20 @@ fn hidden_corners(
 /// where the other three put it if the tag were seen without perspective
 /// (the parallelogram they span).
 fn near_parallelogram(corners: &[[f64; 2]; 4], k: usize) -> bool {
+    parallelogram_gap(corners, k) <= HIDDEN_CORNER_TOL_PX
+}
+
+/// Distance (px) of corner `k` of `corners` from where the other three put
+/// it if the tag were seen without perspective: the fourth corner of the
+/// parallelogram they span.
+fn parallelogram_gap(corners: &[[f64; 2]; 4], k: usize) -> f64 {
     let (a, o, b) = (
         corners[(k + 1) % 4],
         corners[(k + 2) % 4],
         corners[(k + 3) % 4],
     );
     let p = [a[0] + b[0] - o[0], a[1] + b[1] - o[1]];
-    norm(sub(p, corners[k])) <= HIDDEN_CORNER_TOL_PX
+    norm(sub(p, corners[k]))
 }
 
 /// Farthest (px) the one hidden corner of a nearest-codeword reading may
@@ -363,22 +370,18 @@ const HIDDEN_CORNER_TOL_OF_SIDE: f64 = 0.2;
 /// Whether the `hidden` corners of a reading near its code's limit (one
 /// that would not stand without its fit, [`stands_unfit`]) lie where a
 /// square seen in perspective could put them: each within
-/// [`HIDDEN_CORNER_TOL_OF_SIDE`] of the mean side of the parallelogram of
-/// the other three. Such a reading's cells confirm little, and the fit
-/// places a hidden corner from the visible edges alone, which may include
-/// an occluder's edge running into the frame. A loose test: it keeps
-/// every right reading of the wild and calibration sets and cannot judge
-/// a misplaced corner that stays near the parallelogram.
+/// [`HIDDEN_CORNER_TOL_OF_SIDE`] of the quad's mean side from the fourth
+/// corner of the parallelogram of the other three ([`parallelogram_gap`]).
+/// Such a reading's cells confirm little, and the fit places a hidden
+/// corner from the visible edges alone, which may include an occluder's
+/// edge running into the frame. A loose test: it keeps every right reading
+/// of the wild and calibration sets and cannot judge a misplaced corner
+/// that stays near the parallelogram.
 fn hidden_corners_plausible(corners: &[[f64; 2]; 4], hidden: [bool; 4]) -> bool {
     let tol = HIDDEN_CORNER_TOL_OF_SIDE * mean_side(corners);
-    (0..4).filter(|&k| hidden[k]).all(|k| {
-        let (a, o, b) = (
-            corners[(k + 1) % 4],
-            corners[(k + 2) % 4],
-            corners[(k + 3) % 4],
-        );
-        norm(sub([a[0] + b[0] - o[0], a[1] + b[1] - o[1]], corners[k])) <= tol
-    })
+    (0..4)
+        .filter(|&k| hidden[k])
+        .all(|k| parallelogram_gap(corners, k) <= tol)
 }
 
 /// Centroid of a candidate's corners at full resolution.
@@ -755,7 +758,9 @@ fn verify_one(
             // sigma calibration set, one of 30 with a hidden corner).
             // Which corners are seen is judged on the fit's geometry, as
             // when the quad was read (the corners kept may differ by up to
-            // `KEEP_MOVE_PX`).
+            // `KEEP_MOVE_PX`). Any reading near the code's limit must
+            // have its hidden corners where perspective could put them
+            // (`hidden_corners_plausible`).
             let hidden = hidden_corners(img, t, &v.corners, d.estimated, v.unsupported);
             let stands = occluded_geometry_stands(&d.corners, hidden);
             let judged = d.occluded || d.upsampled;
