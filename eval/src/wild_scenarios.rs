@@ -337,20 +337,8 @@ mod tests {
         factors: &[(&str, FactorValue)],
     ) -> MarkerOutcome {
         MarkerOutcome {
-            index: 0,
             marker_index,
-            status,
-            corner_error_max_px: None,
-            corners: None,
-            corner_errors_px: None,
-            corner_sigma: None,
-            estimated: [false; 4],
-            likelihood: false,
-            pose: None,
-            factors: factors
-                .iter()
-                .map(|(k, v)| (k.to_string(), v.clone()))
-                .collect(),
+            ..crate::wild_summary::tests::outcome(0, status, factors)
         }
     }
 

@@ -570,12 +570,18 @@ impl WildSummary {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::draws::Factors;
     use crate::pose_error::PoseError;
 
-    fn outcome(index: usize, status: Status, factors: &[(&str, FactorValue)]) -> MarkerOutcome {
+    /// Marker 0 of image `index`, with `status` and `factors` and nothing
+    /// else measured (also for `wild_scenarios`' tests).
+    pub(crate) fn outcome(
+        index: usize,
+        status: Status,
+        factors: &[(&str, FactorValue)],
+    ) -> MarkerOutcome {
         MarkerOutcome {
             index,
             marker_index: 0,
