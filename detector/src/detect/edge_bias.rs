@@ -89,23 +89,43 @@ fn read_model(sigma: f64, cell: f64, r: &Ruler) -> Option<(f64, f64)> {
         .map(|k| model(f64::from(k) * step, sigma, cell))
         .collect();
     let mid = (-k0) as usize;
-    let white = prof[..=mid].iter().copied().fold(f64::MIN, f64::max);
-    let black = prof[mid..].iter().copied().fold(f64::MAX, f64::min);
-    let at = crossing(&prof, 0.5 * (white + black), mid)?;
+    let (white, black) = levels(&prof, mid);
+    // The model's profile rises over the margin and falls once into the
+    // frame: its one falling crossing is the one nearest the edge.
+    let (_, at) = falling_crossing(&prof, 0.5 * (white + black), mid, step)?;
     let width = rise_width(&prof, black, white - black, at);
     Some(((at - mid as f64) * step, width * step))
 }
 
-/// Sample position (fractional) where `prof` falls through `level`,
-/// nearest to sample `mid`.
-fn crossing(prof: &[f64], level: f64, mid: usize) -> Option<f64> {
-    let mut best: Option<f64> = None;
+/// The white and black levels of a profile across a side whose printed
+/// edge is expected at sample `mid`: the brightest sample up to it and the
+/// darkest from it. Refinement, the model fit and the model of the side
+/// all read their profiles this way.
+pub(crate) fn levels(prof: &[f64], mid: usize) -> (f64, f64) {
+    let white = prof[..=mid].iter().copied().fold(f64::MIN, f64::max);
+    let black = prof[mid..].iter().copied().fold(f64::MAX, f64::min);
+    (white, black)
+}
+
+/// Where `prof` (samples `step` px apart, the expected edge at sample
+/// `mid`) falls through `level`, the falling crossing nearest the
+/// expected edge: its offset from it (px, positive towards the end of the
+/// profile) and its position in samples. `None` without one.
+pub(crate) fn falling_crossing(
+    prof: &[f64],
+    level: f64,
+    mid: usize,
+    step: f64,
+) -> Option<(f64, f64)> {
+    let start = -(mid as f64);
+    let mut best: Option<(f64, f64)> = None;
     for i in 0..prof.len().saturating_sub(1) {
         let (u, v) = (prof[i], prof[i + 1]);
         if u >= level && v < level {
-            let at = i as f64 + (u - level) / (u - v);
-            if best.is_none_or(|b| (at - mid as f64).abs() < (b - mid as f64).abs()) {
-                best = Some(at);
+            let f = (u - level) / (u - v);
+            let off = (start + i as f64 + f) * step;
+            if best.is_none_or(|(b, _)| off.abs() < b.abs()) {
+                best = Some((off, i as f64 + f));
             }
         }
     }

@@ -586,25 +586,12 @@ fn edge_crossing(
     if !sample_profile(img, c, n, step, (k0, k1), prof) {
         return None;
     }
-    let mid_k = (-k0) as usize;
-    let white = prof[..=mid_k].iter().copied().fold(f64::MIN, f64::max);
-    let black = prof[mid_k..].iter().copied().fold(f64::MAX, f64::min);
+    let mid = (-k0) as usize;
+    let (white, black) = edge_bias::levels(prof, mid);
     if white - black < p.min_contrast {
         return None;
     }
-    let level = 0.5 * (white + black);
-    let mut best: Option<(f64, f64)> = None;
-    for i in 0..prof.len() - 1 {
-        let (u, v) = (prof[i], prof[i + 1]);
-        if u >= level && v < level {
-            let f = (u - level) / (u - v);
-            let t = (f64::from(k0) + i as f64 + f) * step;
-            if best.is_none_or(|(b, _)| t.abs() < b.abs()) {
-                best = Some((t, i as f64 + f));
-            }
-        }
-    }
-    let (t, at) = best?;
+    let (t, at) = edge_bias::falling_crossing(prof, 0.5 * (white + black), mid, step)?;
     let width = if p.rise {
         edge_bias::rise_width(prof, black, white - black, at) * step
     } else {

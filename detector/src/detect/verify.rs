@@ -712,25 +712,11 @@ fn measure(
     if !sample_profile(img, p, n, step, (-k, k), prof) {
         return None;
     }
-    let mid = k as usize;
-    let white = prof[..=mid].iter().copied().fold(f64::MIN, f64::max);
-    let black = prof[mid..].iter().copied().fold(f64::MAX, f64::min);
+    let (white, black) = edge_bias::levels(prof, k as usize);
     if white - black < min_contrast {
         return None;
     }
-    let level = 0.5 * (white + black);
-    let mut best: Option<f64> = None;
-    for i in 0..prof.len() - 1 {
-        let (u, v) = (prof[i], prof[i + 1]);
-        if u >= level && v < level {
-            let f = (u - level) / (u - v);
-            let off = (f64::from(-k) + i as f64 + f) * step;
-            if best.is_none_or(|o| off.abs() < o.abs()) {
-                best = Some(off);
-            }
-        }
-    }
-    let off = best?;
+    let (off, _) = edge_bias::falling_crossing(prof, 0.5 * (white + black), k as usize, step)?;
     Some(Measured {
         m: *m,
         x: [p[0] + off * n[0], p[1] + off * n[1]],
