@@ -40,6 +40,22 @@ impl FactorValue {
         }
     }
 
+    /// The number, if the value is one.
+    pub fn as_num(&self) -> Option<f64> {
+        match self {
+            Self::Num(v) => Some(*v),
+            Self::Text(_) => None,
+        }
+    }
+
+    /// The text, if the value is a category.
+    pub fn as_text(&self) -> Option<&str> {
+        match self {
+            Self::Text(t) => Some(t),
+            Self::Num(_) => None,
+        }
+    }
+
     /// The value as a label (numbers in Rust's shortest round-trip form).
     pub fn label(&self) -> String {
         match self {

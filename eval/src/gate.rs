@@ -415,7 +415,7 @@ pub fn check_speed(baseline: &Baseline, speed: &SpeedReport, tol: Tolerances) ->
         })
         .collect();
     let mut growth: Vec<f64> = peers.iter().filter_map(SpeedVerdict::growth_low).collect();
-    let growth_low = median(&mut growth);
+    let growth_low = crate::speed::median_of(&mut growth);
     let allowed = 1.0 + tol.time_ratio;
     let complete = growth.len() == peers.len();
     let failed = !peers.is_empty() && (!complete || growth_low.is_nan() || growth_low > allowed);
@@ -424,15 +424,5 @@ pub fn check_speed(baseline: &Baseline, speed: &SpeedReport, tol: Tolerances) ->
         growth_low,
         allowed,
         failed,
-    }
-}
-
-/// Median of `v` (NaN when empty).
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    match v.len() {
-        0 => f64::NAN,
-        n if n % 2 == 1 => v[n / 2],
-        n => 0.5 * (v[n / 2 - 1] + v[n / 2]),
     }
 }

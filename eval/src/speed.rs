@@ -228,7 +228,8 @@ pub fn confirm_failures(
     Ok(failed)
 }
 
-fn median_of(v: &mut [f64]) -> f64 {
+/// Median of `v` (NaN when empty); sorts `v`.
+pub(crate) fn median_of(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     if n == 0 {

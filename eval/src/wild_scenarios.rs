@@ -14,7 +14,7 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
-use crate::draws::{FactorValue, Factors};
+use crate::draws::Factors;
 use crate::wild::{MarkerOutcome, Status, SIDE_FACTOR};
 
 /// Smallest marker square (px) of the bars: the size its small-tag
@@ -44,21 +44,11 @@ struct Scenario {
     name: &'static str,
     why: &'static str,
     bar: Option<f64>,
-    holds: fn(&Factors) -> bool,
+    holds: fn(&MarkerOutcome) -> bool,
 }
 
 fn num(f: &Factors, k: &str) -> Option<f64> {
-    match f.get(k)? {
-        FactorValue::Num(v) => Some(*v),
-        FactorValue::Text(_) => None,
-    }
-}
-
-fn text<'a>(f: &'a Factors, k: &str) -> Option<&'a str> {
-    match f.get(k)? {
-        FactorValue::Text(t) => Some(t),
-        FactorValue::Num(_) => None,
-    }
+    f.get(k)?.as_num()
 }
 
 fn side_ok(f: &Factors) -> bool {
@@ -69,15 +59,15 @@ fn coverage(f: &Factors) -> f64 {
     num(f, "occluder_coverage").unwrap_or(0.0)
 }
 
-fn main_bar(f: &Factors) -> bool {
-    side_ok(f) && coverage(f) <= BAR_MAX_COVERAGE
+fn main_bar(o: &MarkerOutcome) -> bool {
+    side_ok(&o.factors) && coverage(&o.factors) <= BAR_MAX_COVERAGE
 }
 
-/// Whether the frame's glare spot lies on this marker: glare is drawn on
+/// Whether the frame's glare spot lies on marker `o`: glare is drawn on
 /// one marker of a frame (`glare_marker`) when its peak is above zero.
-fn glared(f: &Factors, marker_index: usize) -> bool {
-    num(f, "glare_peak").is_some_and(|p| p > 0.0)
-        && num(f, "glare_marker").is_some_and(|m| m == marker_index as f64)
+fn glared(o: &MarkerOutcome) -> bool {
+    num(&o.factors, "glare_peak").is_some_and(|p| p > 0.0)
+        && num(&o.factors, "glare_marker").is_some_and(|m| m == o.marker_index as f64)
 }
 
 fn heavy_blur(f: &Factors) -> bool {
@@ -85,108 +75,88 @@ fn heavy_blur(f: &Factors) -> bool {
         || num(f, "motion_blur_px").is_some_and(|m| m >= HEAVY_MOTION_PX)
 }
 
-/// The scenarios, bars first. The breakdown rows split the main bar's
-/// markers into four disjoint groups, in this order: glared, heavily
-/// blurred, occluded, and none of these.
-fn scenarios() -> Vec<(Scenario, Option<Breakdown>)> {
-    vec![
-        (
-            Scenario {
-                name: "coverage <= 30%, side >= 24 px",
-                why: "the reference README's 30%; 24 px, the issue's smallest ct14 square",
-                bar: Some(0.98),
-                holds: main_bar,
-            },
-            None,
-        ),
-        (
-            Scenario {
-                name: "coverage 30-40%, side >= 24 px",
-                why: "the field report's \"30-40% coverage\"",
-                bar: Some(0.90),
-                holds: |f| {
-                    side_ok(f)
-                        && coverage(f) > BAR_MAX_COVERAGE
-                        && coverage(f) <= HEAVY_MAX_COVERAGE
-                },
-            },
-            None,
-        ),
-        (
-            Scenario {
-                name: "sticks and cables, side >= 24 px",
-                why:
-                    "the field report: sticks and cables across the tag, any coverage drawn (2-40%)",
-                bar: Some(0.98),
-                holds: |f| {
-                    side_ok(f) && matches!(text(f, "occluder_kind"), Some("stick" | "cable"))
-                },
-            },
-            None,
-        ),
-        (
-            Scenario {
-                name: "frames of 2+ markers, coverage <= 30%, side >= 24 px",
-                why: "the field report's dense frames",
-                bar: Some(0.98),
-                holds: |f| main_bar(f) && num(f, "markers_per_frame").is_some_and(|n| n >= 2.0),
-            },
-            None,
-        ),
-        breakdown(
-            "first row: glared",
-            "a saturated glare spot on the marker",
-            Breakdown::Glared,
-        ),
-        breakdown(
-            "first row: heavy blur, not glared",
-            "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
-            Breakdown::HeavyBlur,
-        ),
-        breakdown(
-            "first row: occluded, not glared or heavily blurred",
-            "an occluder on 2-30% of the square",
-            Breakdown::Occluded,
-        ),
-        breakdown(
-            "first row: none of these",
-            "no occluder, no glare, at most moderate blur",
-            Breakdown::Clean,
-        ),
-    ]
-}
-
-/// The four disjoint groups of the main bar's markers.
+/// The four disjoint groups the main bar's markers are split into, tried
+/// in this order.
 #[derive(Clone, Copy, PartialEq)]
-enum Breakdown {
+enum Group {
     Glared,
     HeavyBlur,
     Occluded,
     Clean,
 }
 
-fn breakdown(name: &'static str, why: &'static str, b: Breakdown) -> (Scenario, Option<Breakdown>) {
-    (
-        Scenario {
-            name,
-            why,
-            bar: None,
-            holds: main_bar,
-        },
-        Some(b),
-    )
+fn group_of(o: &MarkerOutcome) -> Group {
+    if glared(o) {
+        Group::Glared
+    } else if heavy_blur(&o.factors) {
+        Group::HeavyBlur
+    } else if coverage(&o.factors) > 0.0 {
+        Group::Occluded
+    } else {
+        Group::Clean
+    }
 }
 
-fn group_of(f: &Factors, marker_index: usize) -> Breakdown {
-    if glared(f, marker_index) {
-        Breakdown::Glared
-    } else if heavy_blur(f) {
-        Breakdown::HeavyBlur
-    } else if coverage(f) > 0.0 {
-        Breakdown::Occluded
-    } else {
-        Breakdown::Clean
-    }
+/// The scenarios, bars first, then the main bar's markers by [`Group`].
+fn scenarios() -> Vec<Scenario> {
+    vec![
+        Scenario {
+            name: "coverage <= 30%, side >= 24 px",
+            why: "the reference README's 30%; 24 px, the issue's smallest ct14 square",
+            bar: Some(0.98),
+            holds: main_bar,
+        },
+        Scenario {
+            name: "coverage 30-40%, side >= 24 px",
+            why: "the field report's \"30-40% coverage\"",
+            bar: Some(0.90),
+            holds: |o| {
+                let c = coverage(&o.factors);
+                side_ok(&o.factors) && c > BAR_MAX_COVERAGE && c <= HEAVY_MAX_COVERAGE
+            },
+        },
+        Scenario {
+            name: "sticks and cables, side >= 24 px",
+            why: "the field report: sticks and cables across the tag, any coverage drawn (2-40%)",
+            bar: Some(0.98),
+            holds: |o| {
+                let kind = o.factors.get("occluder_kind").and_then(|v| v.as_text());
+                side_ok(&o.factors) && matches!(kind, Some("stick" | "cable"))
+            },
+        },
+        Scenario {
+            name: "frames of 2+ markers, coverage <= 30%, side >= 24 px",
+            why: "the field report's dense frames",
+            bar: Some(0.98),
+            holds: |o| {
+                main_bar(o) && num(&o.factors, "markers_per_frame").is_some_and(|n| n >= 2.0)
+            },
+        },
+        Scenario {
+            name: "first row: glared",
+            why: "a saturated glare spot on the marker",
+            bar: None,
+            holds: |o| main_bar(o) && group_of(o) == Group::Glared,
+        },
+        Scenario {
+            name: "first row: heavy blur, not glared",
+            why: "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
+            bar: None,
+            holds: |o| main_bar(o) && group_of(o) == Group::HeavyBlur,
+        },
+        Scenario {
+            name: "first row: occluded, not glared or heavily blurred",
+            why: "an occluder on 2-30% of the square",
+            bar: None,
+            holds: |o| main_bar(o) && group_of(o) == Group::Occluded,
+        },
+        Scenario {
+            name: "first row: none of these",
+            why: "no occluder, no glare, at most moderate blur",
+            bar: None,
+            holds: |o| main_bar(o) && group_of(o) == Group::Clean,
+        },
+    ]
 }
 
 /// One system on one scenario.
@@ -226,13 +196,10 @@ pub fn scenario_rows<'a>(
     outcomes: impl Fn(&str) -> Vec<&'a MarkerOutcome>,
 ) -> Vec<ScenarioRow> {
     let mut rows = Vec::new();
-    for (s, b) in scenarios() {
+    for s in scenarios() {
         for sys in systems {
-            let mine: Vec<&MarkerOutcome> = outcomes(sys)
-                .into_iter()
-                .filter(|o| (s.holds)(&o.factors))
-                .filter(|o| b.is_none_or(|b| group_of(&o.factors, o.marker_index) == b))
-                .collect();
+            let mine: Vec<&MarkerOutcome> =
+                outcomes(sys).into_iter().filter(|o| (s.holds)(o)).collect();
             if mine.is_empty() {
                 continue;
             }
@@ -330,6 +297,7 @@ pub fn scenarios_table(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::draws::FactorValue;
 
     fn marker(
         marker_index: usize,

@@ -413,13 +413,7 @@ fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
     }
     let mut curves = Vec::new();
     for (factor, obs) in by_factor {
-        let numeric: Option<Vec<f64>> = obs
-            .iter()
-            .map(|(_, v, _)| match v {
-                FactorValue::Num(x) => Some(*x),
-                FactorValue::Text(_) => None,
-            })
-            .collect();
+        let numeric: Option<Vec<f64>> = obs.iter().map(|(_, v, _)| v.as_num()).collect();
         let (bins, labels): (Option<Bins>, Vec<String>) = match &numeric {
             Some(values) => match Bins::of(values) {
                 Some(b) => {
