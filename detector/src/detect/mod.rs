@@ -102,9 +102,10 @@ pub struct Detection {
     /// reported only when the fit of the tag's model to its edges confirms
     /// its geometry (`corner_sigma` is then set).
     pub likelihood: bool,
-    /// Of a likelihood reading: read by its nearest codeword cell by cell,
-    /// as under an occluder (the verify stage judges such readings more
-    /// strictly).
+    /// Read as under an occluder: a likelihood reading by its nearest
+    /// codeword cell by cell, or a code reading under glare resting on
+    /// more erasures than the family's limit (the verify stage judges such
+    /// readings more strictly).
     #[serde(skip)]
     pub(crate) occluded: bool,
     /// Read in a small-tag region upsampled 2x (`small`): its hidden
