@@ -19,7 +19,9 @@
 //! `cargo bench -p coppertag --bench wild`; set `COPPERTAG_BENCH_ROUNDS`
 //! to change the number of runs per frame of the printed summary,
 //! `COPPERTAG_BENCH_THREADS` to time another thread count against one
-//! (1: the one-thread detector alone),
+//! (1: the one-thread detector alone), `COPPERTAG_BENCH_FAMILIES` (say
+//! `ct14`) to decode only some built-in families (default: the detector's
+//! default families),
 //! `COPPERTAG_BENCH_SETS` (say `clean_1080p,wild_4k`) to render and time
 //! only some sets, `COPPERTAG_BENCH_FRAMES` to a directory to keep the
 //! rendered frames there (PNG) and read them back on later runs (under
@@ -281,12 +283,17 @@ fn bench(c: &mut Criterion) {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(THREADS);
+    let families = std::env::var("COPPERTAG_BENCH_FAMILIES").ok();
     let detector = |threads: usize| {
         let label = format!("{threads} thread{}", if threads == 1 { "" } else { "s" });
-        let cfg = DetectorConfig {
-            threads,
-            ..DetectorConfig::default()
+        let base = match &families {
+            Some(f) => {
+                let names: Vec<&str> = f.split(',').collect();
+                DetectorConfig::with_builtin_families(&names).expect("COPPERTAG_BENCH_FAMILIES")
+            }
+            None => DetectorConfig::default(),
         };
+        let cfg = DetectorConfig { threads, ..base };
         (label, Detector::new(cfg).unwrap())
     };
     let mut dets = vec![detector(1)];
