@@ -349,17 +349,15 @@ pub(crate) fn decode_quad_by(
     if let Some(r) = reading {
         return Some(reading_to_quad(r, corners, contrast, Method::Code));
     }
-    if let Some(r) = read_glared(family, &y, black, contrast, params.erase_fraction) {
-        // Within the levelled reading's own bounds it is a code reading
-        // like the others; past them, only as one resting on erasures
-        // alone, which the verify stage judges as a tag under an occluder.
-        let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
-        if r.corrected <= cap && fits(&r) {
-            return Some(reading_to_quad(r, corners, contrast, Method::Code));
-        }
-        if stands_past_limit(family, &r) {
-            return Some(reading_to_quad(r, corners, contrast, Method::Glare));
-        }
+    // Under glare, a reading within the levelled reading's own bounds is
+    // a code reading like the others; one past them, resting on erasures
+    // alone, comes after the likelihood reading (which reads such a tag
+    // with its geometry judged less strictly) and is judged by the verify
+    // stage as a tag under an occluder.
+    let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
+    let glared = read_glared(family, &y, black, contrast, params.erase_fraction);
+    if let Some(r) = glared.filter(|r| r.corrected <= cap && fits(r)) {
+        return Some(reading_to_quad(r, corners, contrast, Method::Code));
     }
     // Then, for a family with few ids, the whole grid against every
     // codeword: as the blur shows each codeword (the blur model's
@@ -369,22 +367,30 @@ pub(crate) fn decode_quad_by(
     // wild set's tags, none rough, and read none of the 16 000 quads there
     // that were no tag); last of all, cell by cell, for a tag whose hidden
     // cells read confidently wrong (an ink-dark or paper-white occluder).
-    let book = family.codebook()?;
-    if let Some(r) = read_blurred(img, family, book, &y, corners, black, contrast) {
+    let book = family.codebook();
+    if let Some(r) =
+        book.and_then(|book| read_blurred(img, family, book, &y, corners, black, contrast))
+    {
         return Some(r);
     }
-    if !accept.nearest {
-        return None;
-    }
-    let near = read_nearest(book, &y)?;
-    codeword_reading(
-        family,
-        &y,
-        (near.id, near.rotation),
-        corners,
-        contrast,
-        Method::Nearest,
-    )
+    let nearest = book
+        .filter(|_| accept.nearest)
+        .and_then(|book| read_nearest(book, &y))
+        .and_then(|near| {
+            codeword_reading(
+                family,
+                &y,
+                (near.id, near.rotation),
+                corners,
+                contrast,
+                Method::Nearest,
+            )
+        });
+    nearest.or_else(|| {
+        glared
+            .filter(|r| stands_past_limit(family, r))
+            .map(|r| reading_to_quad(r, corners, contrast, Method::Glare))
+    })
 }
 
 /// The reading of codeword `id` at `rotation` found by matching the whole
