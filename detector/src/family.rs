@@ -13,6 +13,7 @@ use std::sync::{Arc, OnceLock};
 
 use serde::{Deserialize, Serialize};
 
+use crate::grid_code::{mask, rotate_cell};
 use crate::likelihood::Codebook;
 use crate::rs::ReedSolomon;
 use crate::{Error, Result};
@@ -89,6 +90,11 @@ pub struct Family {
     exceptions: HashMap<u64, u8>,
     /// `cell_order[k]` for the code bits only, as `usize` for indexing.
     code_cells: Vec<usize>,
+    /// Per quarter turn `d`, where each code bit's cell is seen
+    /// ([`rotate_cell`]) and its mask bit ([`mask`]): the decoder reads
+    /// the grid at four rotations for every quad, and computing the two
+    /// per bit (divisions by the grid side) took half its time.
+    seen_code_cells: [Vec<(usize, bool)>; 4],
     covered: Vec<bool>,
     /// Every codeword as a blurred tag shows it, for the likelihood
     /// reading of blurred tags; built on first use (a few tens of ms) and
@@ -180,15 +186,22 @@ impl Family {
         if spec.center_checker_cells == 0 || spec.center_checker_cells > n {
             return Err(bad("center_checker_cells must be in 1..=grid".into()));
         }
-        let code_cells = spec.cell_order[..code_bits]
+        let code_cells: Vec<usize> = spec.cell_order[..code_bits]
             .iter()
             .map(|&c| usize::from(c))
             .collect();
+        let seen_code_cells = std::array::from_fn(|d| {
+            code_cells
+                .iter()
+                .map(|&c| (rotate_cell(c, n, d), mask(c, n)))
+                .collect()
+        });
         Ok(Self {
             spec,
             code,
             exceptions,
             code_cells,
+            seen_code_cells,
             covered,
             codebook: Arc::default(),
         })
@@ -291,6 +304,12 @@ impl Family {
     /// `code_cells()[k]`.
     pub fn code_cells(&self) -> &[usize] {
         &self.code_cells
+    }
+
+    /// Per code bit, in bitstream order, the cell it is seen in at `d`
+    /// quarter turns and its mask bit.
+    pub(crate) fn seen_code_cells(&self, d: usize) -> &[(usize, bool)] {
+        &self.seen_code_cells[d % 4]
     }
 
     /// Checks an id against the family's range.

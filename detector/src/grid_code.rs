@@ -131,15 +131,15 @@ pub fn decode_cells_at(
     let mut erasures = [0usize; 256];
     let mut n_erased = 0;
     let mut last_erased = usize::MAX;
-    for (k, &cell) in family.code_cells().iter().enumerate() {
-        let seen = rotate_cell(cell, n, d);
-        let bit = cells[seen] ^ mask(cell, n);
-        let s = k / m;
-        word[s] |= u8::from(bit) << (m - 1 - k % m);
-        if !erased.is_empty() && erased[seen] && last_erased != s {
-            erasures[n_erased] = s;
-            n_erased += 1;
-            last_erased = s;
+    for (s, symbol) in family.seen_code_cells(d).chunks_exact(m).enumerate() {
+        for (b, &(seen, masked)) in symbol.iter().enumerate() {
+            let bit = cells[seen] ^ masked;
+            word[s] |= u8::from(bit) << (m - 1 - b);
+            if !erased.is_empty() && erased[seen] && last_erased != s {
+                erasures[n_erased] = s;
+                n_erased += 1;
+                last_erased = s;
+            }
         }
     }
     if n_erased > code.parity() {
