@@ -656,7 +656,8 @@ fn read_glared(
 /// levelled by its neighbours, is erased rather than read. The levelled
 /// contrast is that of the cell's own window, sharper than the tag's: on
 /// the wild set's glared tags that the other readings miss at their true
-/// corners, half the band read 48 of 424, the whole band 31, a quarter 45.
+/// corners, half the band read 48 of 424, the whole band 31, three
+/// quarters 45.
 const GLARE_ERASE_SHARE: f64 = 0.5;
 
 /// Half-width, in cells, of the window of [`levelled_min_max`]: a glare
