@@ -289,7 +289,8 @@ fn bench(c: &mut Criterion) {
         let base = match &families {
             Some(f) => {
                 let names: Vec<&str> = f.split(',').collect();
-                DetectorConfig::with_builtin_families(&names).expect("COPPERTAG_BENCH_FAMILIES")
+                DetectorConfig::with_builtin_families(&names)
+                    .unwrap_or_else(|e| panic!("COPPERTAG_BENCH_FAMILIES={f}: {e}"))
             }
             None => DetectorConfig::default(),
         };

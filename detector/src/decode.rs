@@ -323,6 +323,10 @@ pub(crate) fn decode_quad_by(
     let y = whiteness(img, n, &h, black, contrast)?;
     let is_blurred = blurred(&y);
     let fits = |r: &GridReading| accept.limit.is_none_or(|l| within_limit(r, l));
+    // A reading of cells levelled by their neighbourhood reads more, so it
+    // must leave a margin of the code's capacity unused.
+    let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
+    let levelled_fits = |r: &GridReading| r.corrected <= cap && fits(r);
     let reading = read_cells(family, &y, params.erase_fraction)
         .filter(fits)
         .or_else(|| {
@@ -340,11 +344,9 @@ pub(crate) fn decode_quad_by(
         .or_else(|| {
             // Last chance, for uneven light (glare, shadow, a gradient across
             // the tag): each cell against its neighbours rather than against
-            // the tag's one black and one white level. It reads more, so it
-            // must leave a margin of the code's capacity unused.
-            let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
+            // the tag's one black and one white level.
             read_cells(family, &locally_levelled(&y, n), params.erase_fraction)
-                .filter(|r| r.corrected <= cap && fits(r))
+                .filter(levelled_fits)
         });
     if let Some(r) = reading {
         return Some(reading_to_quad(r, corners, contrast, Method::Code));
@@ -354,9 +356,8 @@ pub(crate) fn decode_quad_by(
     // alone, comes after the likelihood reading (which reads such a tag
     // with its geometry judged less strictly) and is judged by the verify
     // stage as a tag under an occluder.
-    let cap = (family.code().parity() / 2).saturating_sub(SHADED_MARGIN);
     let glared = read_glared(family, &y, black, contrast, params.erase_fraction);
-    if let Some(r) = glared.filter(|r| r.corrected <= cap && fits(r)) {
+    if let Some(r) = glared.filter(levelled_fits) {
         return Some(reading_to_quad(r, corners, contrast, Method::Code));
     }
     // Then, for a family with few ids, the whole grid against every
@@ -559,19 +560,22 @@ const SHADED_MARGIN: usize = 2;
 /// (as in Wellner's and Bradley and Roth's image thresholding) in cell
 /// space: uneven light moves a cell and its neighbours together.
 fn locally_levelled(y: &[f64], n: usize) -> Vec<f64> {
-    let r = SHADING_RADIUS;
     (0..n * n)
         .map(|c| {
-            let (i, j) = (c / n, c % n);
-            let rows = i.saturating_sub(r)..=(i + r).min(n - 1);
-            let cols = j.saturating_sub(r)..=(j + r).min(n - 1);
-            let count = (rows.end() - rows.start() + 1) * (cols.end() - cols.start() + 1);
-            let sum: f64 = rows
-                .flat_map(|ii| y[ii * n + cols.start()..=ii * n + cols.end()].iter())
-                .sum();
+            let count: usize = window(y, n, c, SHADING_RADIUS).map(<[f64]>::len).sum();
+            let sum: f64 = window(y, n, c, SHADING_RADIUS).flatten().sum();
             y[c] - sum / count as f64 + 0.5
         })
         .collect()
+}
+
+/// The rows of the window of cells within `r` of cell `c` of the `n` x `n`
+/// grid `y` (row-major), top to bottom, each a slice; the grid's edge clips
+/// the window.
+fn window(y: &[f64], n: usize, c: usize, r: usize) -> impl Iterator<Item = &[f64]> {
+    let (i, j) = (c / n, c % n);
+    let (j0, j1) = (j.saturating_sub(r), (j + r).min(n - 1));
+    (i.saturating_sub(r)..=(i + r).min(n - 1)).map(move |ii| &y[ii * n + j0..=ii * n + j1])
 }
 
 /// Blur widths (cells, Gaussian sigma) considered when the plain reading
@@ -679,16 +683,12 @@ const MIN_LOCAL_RANGE: f64 = 0.35;
 /// space): `None` for a cell whose window spans less than
 /// [`MIN_LOCAL_RANGE`].
 fn levelled_min_max(y: &[f64], n: usize) -> Vec<Option<f64>> {
-    let r = GLARE_RADIUS;
     (0..n * n)
         .map(|c| {
-            let (i, j) = (c / n, c % n);
             let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for ii in i.saturating_sub(r)..=(i + r).min(n - 1) {
-                for &v in &y[ii * n + j.saturating_sub(r)..=ii * n + (j + r).min(n - 1)] {
-                    lo = lo.min(v);
-                    hi = hi.max(v);
-                }
+            for &v in window(y, n, c, GLARE_RADIUS).flatten() {
+                lo = lo.min(v);
+                hi = hi.max(v);
             }
             (hi - lo >= MIN_LOCAL_RANGE).then(|| (y[c] - lo) / (hi - lo))
         })
