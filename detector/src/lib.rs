@@ -22,6 +22,7 @@ pub mod grid_code;
 pub mod homography;
 mod likelihood;
 mod math;
+mod motion;
 mod nearest;
 pub mod pose;
 pub mod rs;

@@ -269,6 +269,77 @@ impl Codebook {
 
     /// The seen grid of codeword `i` at `d` quarter turns (0 black, 1
     /// white, 0.5 under the centre checker).
+    pub(crate) fn seen_grid(&self, i: usize, d: usize) -> Vec<f64> {
+        self.seen(i, d)
+    }
+
+    /// The best plain fit of every id (score, rotation; an infinite score
+    /// for none), from `z`, the samples blurred inside the grid by a blur
+    /// whose templates' sums are close to those of blur `s` of
+    /// [`SIGMAS`], and `outside`, the samples' dot product with what the
+    /// margin and frame add through that blur: the codebook's first round,
+    /// one table look-up per group of 8 cells and codeword.
+    pub(crate) fn score_all(
+        &self,
+        z: &[f64],
+        outside: f64,
+        y_sums: (f64, f64),
+        s: usize,
+    ) -> Vec<(f64, usize)> {
+        let n = self.n;
+        let k = self.informative.len() as f64;
+        let nids = self.ids.len();
+        let z_inf: f64 = self.informative.iter().map(|&c| z[c]).sum();
+        let z_cov: f64 = 0.5 * self.covered.iter().map(|&c| z[c]).sum::<f64>();
+        let ng = self.groups.len();
+        let mut table = vec![0.0f64; ng * 256];
+        let mut best = vec![(f64::INFINITY, 0usize); nids];
+        for d in 0..4 {
+            // Sum of z over the black cells of every pattern of each group.
+            for (g, cells) in self.groups.iter().enumerate() {
+                let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
+                    usize::MAX => 0.0,
+                    c => z[rotate_cell(c, n, d)],
+                });
+                let t = &mut table[g * 256..(g + 1) * 256];
+                t[0] = 0.0;
+                for v in 1..256usize {
+                    t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
+                }
+            }
+            for (i, pat) in self.patterns.chunks_exact(ng).enumerate() {
+                let black: f64 = pat
+                    .iter()
+                    .enumerate()
+                    .map(|(g, &p)| table[g * 256 + usize::from(p)])
+                    .sum();
+                let dot = z_inf - black + z_cov + outside;
+                let sums = self.sums[(s * 4 + d) * nids + i];
+                if let Some((_, _, score)) = plain_fit(dot, sums, y_sums, k) {
+                    if score < best[i].0 {
+                        best[i] = (score, d);
+                    }
+                }
+            }
+        }
+        best
+    }
+
+    /// The fit of a smeared reading ([`crate::motion`]) of codeword `i` at
+    /// `d` quarter turns with the lead `ratio` and fitted contrast `scale`.
+    pub(crate) fn smeared_fit(&self, i: usize, d: usize, ratio: f64, scale: f64) -> LikelyFit {
+        LikelyFit {
+            id: self.ids[i],
+            rotation: d,
+            index: i,
+            blur: SMEAR_BLUR,
+            ratio,
+            scale,
+        }
+    }
+
+    /// The seen grid of codeword `i` at `d` quarter turns (0 black, 1
+    /// white, 0.5 under the centre checker).
     fn seen(&self, i: usize, d: usize) -> Vec<f64> {
         let n = self.n;
         let mut seen = vec![0.5; n * n];
@@ -322,6 +393,10 @@ impl Codebook {
     }
 }
 
+/// [`LikelyFit::blur`] of a smeared reading ([`crate::motion`]): no
+/// round template; such a fit is never aligned ([`LikelyFit::promising`]).
+const SMEAR_BLUR: usize = usize::MAX;
+
 /// The best codeword for a grid, and how clearly it wins.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct LikelyFit {
@@ -350,7 +425,7 @@ impl LikelyFit {
     /// Whether the best id is worth aligning the quad to: a plausible
     /// contrast and a lead of at least [`PROMISING_RATIO`].
     pub(crate) fn promising(&self) -> bool {
-        self.ratio * PROMISING_RATIO < 1.0 && self.plausible()
+        self.blur != SMEAR_BLUR && self.ratio * PROMISING_RATIO < 1.0 && self.plausible()
     }
 
     fn plausible(&self) -> bool {
@@ -411,7 +486,12 @@ fn blur_axis(src: &[f64], n: usize, w: &[f64], vertical: bool) -> Vec<f64> {
 /// the score the mean squared residual divided by `a^2` (the noise relative
 /// to the contrast the codeword explains); `None` for a flat or inverted
 /// fit.
-fn plain_fit(dot: f64, t_sums: (f64, f64), y_sums: (f64, f64), k: f64) -> Option<(f64, f64, f64)> {
+pub(crate) fn plain_fit(
+    dot: f64,
+    t_sums: (f64, f64),
+    y_sums: (f64, f64),
+    k: f64,
+) -> Option<(f64, f64, f64)> {
     let (st, stt) = t_sums;
     let (sy, syy) = y_sums;
     let var = stt - st * st / k;
@@ -428,7 +508,7 @@ fn plain_fit(dot: f64, t_sums: (f64, f64), y_sums: (f64, f64), k: f64) -> Option
 /// Trimmed score of the template `t` (informative cells) against `y`:
 /// fitted by least squares, then the mean of the smallest [`TRIM_KEEP`]
 /// share of squared residuals divided by `a^2`, and `a`.
-fn trimmed(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
+pub(crate) fn trimmed(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
     let k = t.len() as f64;
     let dot = t.iter().zip(y).map(|(a, b)| a * b).sum();
     let ts = (t.iter().sum(), t.iter().map(|v| v * v).sum());
@@ -484,40 +564,7 @@ pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
     // computed only for a grid that passes it).
     let coarse_blur = blur_at(COARSE_SIGMA);
     let (z, outside) = &coarse_blur;
-    let z_inf: f64 = book.informative.iter().map(|&c| z[c]).sum();
-    let z_cov: f64 = 0.5 * book.covered.iter().map(|&c| z[c]).sum::<f64>();
-    let ng = book.groups.len();
-    let mut table = vec![0.0f64; ng * 256];
-    // Best plain fit of each id: (score, rotation).
-    let mut coarse = vec![(f64::INFINITY, 0usize); nids];
-    for d in 0..4 {
-        // Sum of z over the black cells of every pattern of each group.
-        for (g, cells) in book.groups.iter().enumerate() {
-            let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
-                usize::MAX => 0.0,
-                c => z[rotate_cell(c, n, d)],
-            });
-            let t = &mut table[g * 256..(g + 1) * 256];
-            t[0] = 0.0;
-            for v in 1..256usize {
-                t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
-            }
-        }
-        for (i, pat) in book.patterns.chunks_exact(ng).enumerate() {
-            let black: f64 = pat
-                .iter()
-                .enumerate()
-                .map(|(g, &p)| table[g * 256 + usize::from(p)])
-                .sum();
-            let dot = z_inf - black + z_cov + outside;
-            let sums = book.sums[(COARSE_SIGMA * 4 + d) * nids + i];
-            if let Some((_, _, score)) = plain_fit(dot, sums, y_sums, k) {
-                if score < coarse[i].0 {
-                    coarse[i] = (score, d);
-                }
-            }
-        }
-    }
+    let coarse = book.score_all(z, *outside, y_sums, COARSE_SIGMA);
     let mut order: Vec<usize> = (0..nids).filter(|&i| coarse[i].0.is_finite()).collect();
     order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
     if let [a, b, ..] = order[..] {
