@@ -532,6 +532,7 @@ fn read(
         let accept = Accept {
             nearest: true,
             limit: Some(t.max_corrected),
+            smeared: !cand.estimated.iter().any(|&e| e),
         };
         let Some(r) = decode_quad_by(img, &t.family, q, params, accept) else {
             continue;
@@ -540,15 +541,7 @@ fn read(
             continue;
         }
         let d = r.rotation % 4;
-        let estimated: [bool; 4] = std::array::from_fn(|c| cand.estimated[(c + 4 - d) % 4]);
-        // A smeared tag's corners are rounded off along the smear: one the
-        // quad inferred from the other three may sit where the smear ends.
-        // On the wild and calibration sets, 4 smeared readings with such a
-        // corner put a corner 3.2 to 4.7 px off; of those whose four
-        // corners were all measured, none was over 3 px.
-        if r.smeared && estimated.iter().any(|&e| e) {
-            continue;
-        }
+        let estimated = std::array::from_fn(|c| cand.estimated[(c + 4 - d) % 4]);
         let Some(h) = Homography::from_points(&CORNERS, &r.corners) else {
             continue;
         };

@@ -500,6 +500,7 @@ fn check(
     let accept = Accept {
         nearest: occluded,
         limit: None,
+        smeared: true,
     };
     match decode_quad_by(img, family, &corners, decode, accept) {
         Some(r) if r.id == id && r.rotation % 4 == 0 => Verdict::Fitted(Verified {
