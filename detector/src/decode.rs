@@ -51,9 +51,9 @@ pub struct QuadReading {
     /// erasures than the family's limit (its glare-clipped cells erased).
     pub occluded: bool,
     /// Read as smeared by motion: a likelihood reading against codewords
-    /// blurred along one direction ([`crate::motion`]). The smear rounds
-    /// the tag's corners off along it, so a quad's corner that was not
-    /// measured but inferred from the other three is not trusted there.
+    /// blurred along one direction (a tag moving during the exposure).
+    /// The smear rounds the tag's corners off along it; the detector takes
+    /// such a reading only from a quad whose four corners it measured.
     pub smeared: bool,
 }
 
@@ -473,8 +473,9 @@ fn read_blurred(
             (fit, y, corners, Method::Blur)
         }
         // A smear along one direction fits no round template clearly.
-        // (Tried only on grids that look blurred ([`blurred`]), it read
-        // 25 fewer of the wild set's tags, for no time measurable.)
+        // (Tried only on grids that look blurred ([`blurred`]), with the
+        // direction's bound at 0.55, it read 25 fewer of the wild set's
+        // tags, for no time the wild set's timings could tell apart.)
         _ if smeared => {
             let fit = read_smeared(book, y).filter(LikelyFit::reads)?;
             (fit, y.to_vec(), *corners, Method::Smear)
