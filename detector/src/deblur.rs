@@ -96,7 +96,7 @@ pub(crate) fn blur_grid(x: &[f64], n: usize, sigma: f64, reach: i64) -> Vec<f64>
 /// Whiteness of the tag around an `n` x `n` grid at cell `(i, j)` outside
 /// it: the one-cell margin ring is white, everything beyond it black (the
 /// frame).
-fn outside(i: i64, j: i64, n: i64) -> f64 {
+pub(crate) fn outside(i: i64, j: i64, n: i64) -> f64 {
     if (-1..=n).contains(&i) && (-1..=n).contains(&j) {
         1.0
     } else {

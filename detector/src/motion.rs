@@ -26,6 +26,7 @@
 //! tensor is Harris and Stephens' (1988). Its use on a tag's cell grid is
 //! this crate's own.
 
+use crate::deblur::outside;
 use crate::likelihood::{plain_fit, trimmed, Codebook, LikelyFit};
 
 /// Lengths (cells) of the smears tried. A smear under about one and a half
@@ -227,16 +228,6 @@ fn template(seen: &[f64], n: usize, sm: &Smear, informative: &[usize]) -> Vec<f6
         .iter()
         .map(|&c| inside[c] + sm.around[c])
         .collect()
-}
-
-/// Whiteness of the tag around an `n` x `n` grid at cell `(i, j)` outside
-/// it: the one-cell white margin, then the black frame.
-fn outside(i: i64, j: i64, n: i64) -> f64 {
-    if (-1..=n).contains(&i) && (-1..=n).contains(&j) {
-        1.0
-    } else {
-        0.0
-    }
 }
 
 /// The direction along which the cells `y` of a grid of `n` x `n` change
