@@ -327,7 +327,9 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
              Share found, with the markers counted and the rough detections among those found, on the \
              scenarios the detector issue sets its bars on (the bar is what it asks of CopperTag), then the \
              first row's markers split four ways, in this order: a glare spot on the marker; else heavy blur; \
-             else an occluder; else none of these. Coverage is the occluded share of the marker square.\n\n",
+             else an occluder; else none of these; last, the markers with no occluder and no glare spot, of \
+             the bars' sizes, split by size and blur (sharp, heavy as above, moderate between). Coverage is \
+             the occluded share of the marker square.\n\n",
         );
         out.push_str(&scenarios_table(&w.scenarios, &systems, display));
     }

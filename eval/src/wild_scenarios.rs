@@ -37,14 +37,44 @@ pub const HEAVY_DEFOCUS_PX: f64 = 1.2;
 /// upper 40% of the wild set's drawn range (0-6 px).
 pub const HEAVY_MOTION_PX: f64 = 3.6;
 
+/// Defocus (px) under which, with motion under [`SHARP_MOTION_PX`], a
+/// marker counts as sharp in the size-and-blur rows: the lower 20% of the
+/// wild set's drawn range (0-2 px), a spread well under a pixel.
+pub const SHARP_DEFOCUS_PX: f64 = 0.4;
+
+/// Motion blur (px) under which a marker counts as sharp: the lower 20% of
+/// the drawn range (0-6 px), about a pixel of smear.
+pub const SHARP_MOTION_PX: f64 = 1.2;
+
+/// Marker-square sides (px) bounding the size-and-blur rows' size bins:
+/// from the bars' smallest square (the paper's 48 px whole tag, a ct14
+/// cell of 1.5 px) through 2 and 2.5 px cells to the set's largest.
+pub const SIZE_BINS_PX: [f64; 3] = [BAR_MIN_SIDE_PX, 32.0, 40.0];
+
 /// One scenario: a name, why it is there, the bar the issue sets on it
 /// (share found; `None` for the breakdown rows) and which markers it
 /// holds.
 struct Scenario {
-    name: &'static str,
-    why: &'static str,
+    name: String,
+    why: String,
     bar: Option<f64>,
-    holds: fn(&MarkerOutcome) -> bool,
+    holds: Box<dyn Fn(&MarkerOutcome) -> bool>,
+}
+
+impl Scenario {
+    fn new(
+        name: &str,
+        why: &str,
+        bar: Option<f64>,
+        holds: impl Fn(&MarkerOutcome) -> bool + 'static,
+    ) -> Self {
+        Self {
+            name: name.into(),
+            why: why.into(),
+            bar,
+            holds: Box::new(holds),
+        }
+    }
 }
 
 fn num(f: &Factors, k: &str) -> Option<f64> {
@@ -99,64 +129,129 @@ fn group_of(o: &MarkerOutcome) -> Group {
 
 /// The scenarios, bars first, then the main bar's markers by [`Group`].
 fn scenarios() -> Vec<Scenario> {
-    vec![
-        Scenario {
-            name: "coverage <= 30%, side >= 24 px",
-            why: "the reference README's 30%; 24 px, the issue's smallest ct14 square",
-            bar: Some(0.98),
-            holds: main_bar,
-        },
-        Scenario {
-            name: "coverage 30-40%, side >= 24 px",
-            why: "the field report's \"30-40% coverage\"",
-            bar: Some(0.90),
-            holds: |o| {
+    let mut all = vec![
+        Scenario::new(
+            "coverage <= 30%, side >= 24 px",
+            "the reference README's 30%; 24 px, the issue's smallest ct14 square",
+            Some(0.98),
+            main_bar,
+        ),
+        Scenario::new(
+            "coverage 30-40%, side >= 24 px",
+            "the field report's \"30-40% coverage\"",
+            Some(0.90),
+            |o| {
                 let c = coverage(&o.factors);
                 side_ok(&o.factors) && c > BAR_MAX_COVERAGE && c <= HEAVY_MAX_COVERAGE
             },
-        },
-        Scenario {
-            name: "sticks and cables, side >= 24 px",
-            why: "the field report: sticks and cables across the tag, any coverage drawn (2-40%)",
-            bar: Some(0.98),
-            holds: |o| {
+        ),
+        Scenario::new(
+            "sticks and cables, side >= 24 px",
+            "the field report: sticks and cables across the tag, any coverage drawn (2-40%)",
+            Some(0.98),
+            |o| {
                 let kind = o.factors.get("occluder_kind").and_then(|v| v.as_text());
                 side_ok(&o.factors) && matches!(kind, Some("stick" | "cable"))
             },
-        },
-        Scenario {
-            name: "frames of 2+ markers, coverage <= 30%, side >= 24 px",
-            why: "the field report's dense frames",
-            bar: Some(0.98),
-            holds: |o| {
-                main_bar(o) && num(&o.factors, "markers_per_frame").is_some_and(|n| n >= 2.0)
-            },
-        },
-        Scenario {
-            name: "first row: glared",
-            why: "a saturated glare spot on the marker",
-            bar: None,
-            holds: |o| main_bar(o) && group_of(o) == Group::Glared,
-        },
-        Scenario {
-            name: "first row: heavy blur, not glared",
-            why: "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
-            bar: None,
-            holds: |o| main_bar(o) && group_of(o) == Group::HeavyBlur,
-        },
-        Scenario {
-            name: "first row: occluded, not glared or heavily blurred",
-            why: "an occluder on 2-30% of the square",
-            bar: None,
-            holds: |o| main_bar(o) && group_of(o) == Group::Occluded,
-        },
-        Scenario {
-            name: "first row: none of these",
-            why: "no occluder, no glare, at most moderate blur",
-            bar: None,
-            holds: |o| main_bar(o) && group_of(o) == Group::Clean,
-        },
-    ]
+        ),
+        Scenario::new(
+            "frames of 2+ markers, coverage <= 30%, side >= 24 px",
+            "the field report's dense frames",
+            Some(0.98),
+            |o| main_bar(o) && num(&o.factors, "markers_per_frame").is_some_and(|n| n >= 2.0),
+        ),
+        Scenario::new(
+            "first row: glared",
+            "a saturated glare spot on the marker",
+            None,
+            |o| main_bar(o) && group_of(o) == Group::Glared,
+        ),
+        Scenario::new(
+            "first row: heavy blur, not glared",
+            "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
+            None,
+            |o| main_bar(o) && group_of(o) == Group::HeavyBlur,
+        ),
+        Scenario::new(
+            "first row: occluded, not glared or heavily blurred",
+            "an occluder on 2-30% of the square",
+            None,
+            |o| main_bar(o) && group_of(o) == Group::Occluded,
+        ),
+        Scenario::new(
+            "first row: none of these",
+            "no occluder, no glare, at most moderate blur",
+            None,
+            |o| main_bar(o) && group_of(o) == Group::Clean,
+        ),
+    ];
+    all.extend(size_and_blur());
+    all
+}
+
+/// How blurred a marker is, for the size-and-blur rows.
+#[derive(Clone, Copy, PartialEq)]
+enum Blur {
+    Sharp,
+    Moderate,
+    Heavy,
+}
+
+fn blur_of(f: &Factors) -> Blur {
+    let d = num(f, "defocus_px").unwrap_or(0.0);
+    let m = num(f, "motion_blur_px").unwrap_or(0.0);
+    if heavy_blur(f) {
+        Blur::Heavy
+    } else if d < SHARP_DEFOCUS_PX && m < SHARP_MOTION_PX {
+        Blur::Sharp
+    } else {
+        Blur::Moderate
+    }
+}
+
+/// Unoccluded, unglared markers of the bars' sizes, split by size
+/// ([`SIZE_BINS_PX`]) and blur: where a system's losses lie once
+/// occluders and glare are set aside, the two things a user can plan
+/// (print size, exposure and focus).
+fn size_and_blur() -> Vec<Scenario> {
+    let blurs = [
+        (
+            Blur::Sharp,
+            "sharp",
+            "defocus < 0.4 px and motion < 1.2 px: the lower 20% of the drawn ranges",
+        ),
+        (Blur::Moderate, "moderate blur", "between sharp and heavy"),
+        (
+            Blur::Heavy,
+            "heavy blur",
+            "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
+        ),
+    ];
+    let mut rows = Vec::new();
+    for (k, &lo) in SIZE_BINS_PX.iter().enumerate() {
+        let hi = SIZE_BINS_PX.get(k + 1).copied();
+        let size = match hi {
+            Some(hi) => format!("side {lo:.0}-{hi:.0} px"),
+            None => format!("side >= {lo:.0} px"),
+        };
+        for (blur, label, why) in blurs {
+            rows.push(Scenario::new(
+                &format!("unoccluded, not glared, {size}: {label}"),
+                why,
+                None,
+                move |o| {
+                    let f = &o.factors;
+                    let side = num(f, SIDE_FACTOR).unwrap_or(0.0);
+                    side >= lo
+                        && hi.is_none_or(|hi| side < hi)
+                        && coverage(f) == 0.0
+                        && !glared(o)
+                        && blur_of(f) == blur
+                },
+            ));
+        }
+    }
+    rows
 }
 
 /// One system on one scenario.
@@ -204,8 +299,8 @@ pub fn scenario_rows<'a>(
                 continue;
             }
             rows.push(ScenarioRow {
-                scenario: s.name.to_string(),
-                why: s.why.to_string(),
+                scenario: s.name.clone(),
+                why: s.why.clone(),
                 bar: s.bar,
                 system: sys.clone(),
                 markers: mine.len(),
@@ -421,6 +516,46 @@ mod tests {
             .sum();
         assert_eq!(parts, main.markers);
         assert!((main.rate() - 0.6).abs() < 1e-12);
+    }
+
+    /// The size-and-blur rows split the unoccluded, unglared markers of
+    /// the bars' sizes by size bin and blur, each marker into exactly one.
+    #[test]
+    fn size_and_blur_rows_split_the_plain_markers_by_size_and_blur() {
+        let mut ms = markers();
+        // 7: a large marker moving 2 px (moderate blur), found.
+        ms.push(marker(
+            0,
+            Status::Correct,
+            &[(SIDE_FACTOR, n(45.0)), ("motion_blur_px", n(2.0))],
+        ));
+        // 8: 32 px exactly belongs to the middle bin; defocus at the sharp
+        // bound is moderate.
+        ms.push(marker(
+            0,
+            Status::Missed,
+            &[(SIDE_FACTOR, n(32.0)), ("defocus_px", n(SHARP_DEFOCUS_PX))],
+        ));
+        let rows = scenario_rows(&["coppertag".into()], |_| ms.iter().collect());
+        let cell = |name: &str| {
+            rows.iter()
+                .find(|r| r.scenario == format!("unoccluded, not glared, {name}"))
+                .map(|r| (r.markers, r.found, r.rough))
+        };
+        // Markers 0 and 6 (6's frame has no glare though it names it).
+        assert_eq!(cell("side 24-32 px: sharp"), Some((2, 1, 0)));
+        // Marker 2: the glare lies on marker 1, not on it.
+        assert_eq!(cell("side 24-32 px: heavy blur"), Some((1, 1, 1)));
+        assert_eq!(cell("side 32-40 px: moderate blur"), Some((1, 0, 0)));
+        assert_eq!(cell("side >= 40 px: moderate blur"), Some((1, 1, 0)));
+        assert_eq!(cell("side 24-32 px: moderate blur"), None);
+        // Glared (1), occluded (3, 4) and small (5) markers are in none.
+        let split: usize = rows
+            .iter()
+            .filter(|r| r.scenario.starts_with("unoccluded, not glared, "))
+            .map(|r| r.markers)
+            .sum();
+        assert_eq!(split, 5);
     }
 
     #[test]
