@@ -656,10 +656,14 @@ const FLAT_GRID_SPREAD: f64 = 0.08;
 /// Whether the cells' whiteness `y` is too even to hold a code
 /// ([`FLAT_GRID_SPREAD`]).
 fn flat(y: &[f64]) -> bool {
+    spread(y) < FLAT_GRID_SPREAD
+}
+
+/// Standard deviation of the cells' whiteness `y` (over all cells).
+fn spread(y: &[f64]) -> f64 {
     let n = y.len() as f64;
     let mean = y.iter().sum::<f64>() / n;
-    let var = y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n;
-    var < FLAT_GRID_SPREAD * FLAT_GRID_SPREAD
+    (y.iter().map(|v| (v - mean) * (v - mean)).sum::<f64>() / n).sqrt()
 }
 
 /// Whether the cells' whiteness `y` looks blurred ([`BLURRED_SHARE`]).
@@ -874,9 +878,7 @@ mod tests {
                     let y: Vec<f64> = (0..n * n)
                         .map(|c| if hidden(c) { grey } else { faded[c] })
                         .collect();
-                    let mean = y.iter().sum::<f64>() / y.len() as f64;
-                    let var = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / y.len() as f64;
-                    least = least.min(var.sqrt());
+                    least = least.min(spread(&y));
                 }
             }
         }

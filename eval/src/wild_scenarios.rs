@@ -37,6 +37,11 @@ pub const HEAVY_DEFOCUS_PX: f64 = 1.2;
 /// upper 40% of the wild set's drawn range (0-6 px).
 pub const HEAVY_MOTION_PX: f64 = 3.6;
 
+/// Why [`heavy_blur`]'s bounds: the reason shown beside both the first
+/// row's heavy-blur part and the size-and-blur rows' heavy column.
+const HEAVY_BLUR_WHY: &str =
+    "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges";
+
 /// Defocus (px) under which, with motion under [`SHARP_MOTION_PX`], a
 /// marker counts as sharp in the size-and-blur rows: the lower 20% of the
 /// wild set's drawn range (0-2 px), a spread well under a pixel.
@@ -168,7 +173,7 @@ fn scenarios() -> Vec<Scenario> {
         ),
         Scenario::new(
             "first row: heavy blur, not glared",
-            "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
+            HEAVY_BLUR_WHY,
             None,
             |o| main_bar(o) && group_of(o) == Group::HeavyBlur,
         ),
@@ -221,11 +226,7 @@ fn size_and_blur() -> Vec<Scenario> {
             "defocus < 0.4 px and motion < 1.2 px: the lower 20% of the drawn ranges",
         ),
         (Blur::Moderate, "moderate blur", "between sharp and heavy"),
-        (
-            Blur::Heavy,
-            "heavy blur",
-            "defocus >= 1.2 px or motion >= 3.6 px: the upper 40% of the drawn ranges",
-        ),
+        (Blur::Heavy, "heavy blur", HEAVY_BLUR_WHY),
     ];
     let mut rows = Vec::new();
     for (k, &lo) in SIZE_BINS_PX.iter().enumerate() {
