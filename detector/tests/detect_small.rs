@@ -80,9 +80,14 @@ fn small_tags_are_found_at_the_default_downsampling() {
     let without = found_share(false);
     eprintln!("small tags found: {with:.2} with the full-resolution look, {without:.2} without");
     assert!(with >= 0.9, "only {with:.2} of the small tags found");
+    // Without the second look the rim look, last, reads most of these
+    // sharp, unoccluded tags from their rims (measured: 0.92, where it
+    // was 0.50 before the rim look); on the wild set's 3000 frames turning
+    // the second look off loses 463 of 3677 tags (occluded and blurred
+    // ones the rim look leaves), so it stays on.
     assert!(
-        with >= without + 0.3,
-        "the full-resolution look adds little: {with:.2} against {without:.2}"
+        with >= without,
+        "the full-resolution look loses tags: {with:.2} against {without:.2}"
     );
 }
 

@@ -16,6 +16,7 @@ use super::parallel::Workers;
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS};
 use super::reject::plainly_not_a_tag;
+use super::rim;
 use super::verify::{verify, Verdict};
 use super::Detection;
 use crate::decode::{decode_quad_by, frame_misread_at_corners, Accept, DecodeParams};
@@ -161,6 +162,15 @@ fn attempt(
     scratch: &mut RefineScratch,
 ) -> Option<Reading> {
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
+    if let Some(e) = cand.rim {
+        return read(img, cand, &q, centre, targets, &p.decode)
+            .filter(|d| !d.occluded)
+            .and_then(|d| rim_reading_stands(img, d, targets, p, &e, scale))
+            .map(|det| Reading {
+                det,
+                outline: false,
+            });
+    }
     let own = read(img, cand, &q, centre, targets, &p.decode).filter(|d| {
         !d.occluded || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
     });
@@ -206,6 +216,63 @@ fn outline_reading_stands(
         verify_reading(img, d, t, p),
         Verdict::Fitted(v) if v.unsupported.iter().all(|&u| !u)
     )
+}
+
+/// Farthest the disc rim a rim reading's fit puts on the image may lie
+/// from the rim measured ([`rim::rim_disagreement`]), as a share of the
+/// data square's side. On the wild set the right readings of the rim look
+/// put it at most 0.21 of the side away (the fit and the rim's ellipse
+/// are both uncertain on 20-30 px tags), the readings whose fit took an
+/// occluder's edge for a side 0.16-0.48.
+const RIM_AGREEMENT_OF_SIDE: f64 = 0.25;
+
+/// Smallest cell (px) of a tag read by the rim look: the smallest data
+/// squares the detector is meant to read (ct14 at 24 px, ct8 at 20 px)
+/// have cells of 1.5 and 2 px. Below it a rim reading has only cells
+/// blurred into each other to place its corners by: on the wild set the
+/// one rim reading with a corner over 3 px off (3.07 px) was a ct14 tag of
+/// 22.5 px smeared by motion, its fit's own sigma 0.2-1.1 px.
+pub(super) const RIM_MIN_CELL_PX: f64 = 1.5;
+
+/// A reading `d` of a rim candidate (`quads::Candidate::rim`, the rim `e`
+/// of the look of scale `scale`) on its fitted corners, if it stands: its
+/// tag's model fits ([`Verdict::Fitted`]: neither unfit nor contradicted
+/// by the fit) and the fit puts the disc rim where it was measured
+/// ([`RIM_AGREEMENT_OF_SIDE`]), on a tag of cells of at least
+/// [`RIM_MIN_CELL_PX`]. The fitted corners replace the quad's:
+/// those came from the rim's prediction, with sides measured from it, and
+/// on the wild set the fit's were the closer (one reading kept on its own
+/// corners was 3.1 px off on a 26 px tag, its fit 2.6 px). The caller
+/// also refuses occluded readings
+/// (nearest codeword, erasures over the limit): the rim look is for tags
+/// too blurred or too small to make a quad, and of its occluded readings
+/// on the wild set 4 of 21 had a corner 3-14 px off, where an occluder's
+/// edge was taken for a side.
+fn rim_reading_stands(
+    img: &GrayView<'_>,
+    d: Detection,
+    targets: &[Target],
+    p: &DecodingParams,
+    e: &super::ellipses::Ellipse,
+    scale: f64,
+) -> Option<Detection> {
+    let t = target_of(targets, &d)?;
+    match verify_reading(img, &d, t, p) {
+        Verdict::Fitted(v)
+            if rim::rim_disagreement(&v.homography, e, scale) <= RIM_AGREEMENT_OF_SIDE
+                && mean_side(&v.corners)
+                    >= RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64 =>
+        {
+            Some(Detection {
+                corners: v.corners,
+                center: v.homography.map([0.0, 0.0]).unwrap_or(d.center),
+                homography: v.homography,
+                rim: true,
+                ..d
+            })
+        }
+        _ => None,
+    }
 }
 
 /// The target whose family detection `d` was read in.
@@ -556,6 +623,7 @@ fn read(
             likelihood: r.likelihood,
             occluded: r.occluded,
             upsampled: false,
+            rim: false,
             center,
             contrast: r.contrast,
             homography: h,
@@ -613,6 +681,16 @@ pub(crate) fn one_per_tag_indexed(found: Vec<Found>) -> Vec<(usize, Detection)> 
 /// which on large, sharp tags are the more accurate (the model fit carries
 /// a bias of a few tenths of a pixel on 500 px tags, not yet understood).
 const KEEP_MOVE_PX: f64 = 1.0;
+/// Floor of the corner uncertainty of a tag read by the rim look, as a
+/// share of its side: its corners are the model fit's on a tag too
+/// blurred or small to make a quad of its own, and lie further from the
+/// truth than the fit's sigma says (at the median twice, at the 90th
+/// percentile six times as far, on the wild set). Chosen on the
+/// calibration set (`make calibrate-sigma`, its rim readings alone) as the
+/// smallest share on a 0.005 grid putting at least 95% of their corners
+/// within 2 sigma (0.02: 90.4%, 0.025: 95.2%).
+const RIM_SIGMA_OF_SIDE: f64 = 0.025;
+
 /// Factor on the corner uncertainty of a tag read by likelihood: such a
 /// tag is small and blurred, and its corners sit further from the truth
 /// than the fit's sigma (with its blur term) says. Chosen with
@@ -750,6 +828,12 @@ fn verify_one(
                     *sg *= LIKELIHOOD_SIGMA_FACTOR;
                 }
             }
+            if d.rim {
+                let floor = RIM_SIGMA_OF_SIDE * mean_side(&d.corners);
+                for sg in &mut sigma {
+                    *sg = sg.max(floor);
+                }
+            }
             d.corner_sigma = sigma.iter().all(|s| s.is_finite()).then_some(sigma);
             // A nearest-codeword reading is judged again on the corners it
             // ends with (see `occluded_reading_stands`), and so is any
@@ -848,6 +932,7 @@ mod tests {
                     likelihood: false,
                     occluded: false,
                     upsampled: false,
+                    rim: false,
                     center: [0.0, 0.0],
                     contrast: 200.0,
                     homography: Homography::from_points(&CORNERS, &corners).unwrap(),
@@ -871,6 +956,7 @@ mod tests {
             area: mean_side(&corners).powi(2),
             linked: false,
             guessed: false,
+            rim: None,
         }
     }
 

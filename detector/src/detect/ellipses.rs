@@ -46,6 +46,10 @@ pub(crate) struct Ellipse {
     /// Whether `anchor` is the checker's disc (unbiased under perspective,
     /// unlike the rim's centre).
     pub checker: bool,
+    /// Unit vector along the major axis (either way along it): with the
+    /// axes, the rim's projection of the disc up to the tag's rotation
+    /// about its centre (see `rim`).
+    pub axis: [f64; 2],
 }
 
 /// Largest turn (degrees) towards the dark side at a polygon vertex inside
@@ -178,6 +182,8 @@ struct Conic {
     centre: [f64; 2],
     a: f64,
     b: f64,
+    /// Unit vector along the major axis.
+    axis: [f64; 2],
     rms: f64,
 }
 
@@ -473,6 +479,7 @@ fn merge(
             b: fit.b,
             anchor: fit.centre,
             checker: false,
+            axis: fit.axis,
         });
     }
 }
@@ -570,6 +577,18 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
     }
     let (ax1, ax2) = (q1.sqrt(), q2.sqrt());
     let (a, b) = if ax1 > ax2 { (ax1, ax2) } else { (ax2, ax1) };
+    // The major axis is the eigenvector of the form's smaller eigenvalue
+    // (the direction the form grows slowest along); the scaling of the
+    // points is isotropic, so it keeps directions.
+    let lmajor = if ax1 > ax2 { l1 } else { l2 };
+    let (u, v) = ([0.5 * cb, lmajor - ca], [lmajor - cc, 0.5 * cb]);
+    let e = if norm(u) >= norm(v) { u } else { v };
+    let axis = if norm(e) > 0.0 {
+        [e[0] / norm(e), e[1] / norm(e)]
+    } else {
+        // A circle: every direction is an axis.
+        [1.0, 0.0]
+    };
     // Sampson distances.
     let mut ss = 0.0;
     for p in pts {
@@ -588,6 +607,7 @@ fn fit_ellipse(pts: &[[f64; 2]]) -> Option<Conic> {
         centre: [x0 / s + mx, y0 / s + my],
         a: a / s,
         b: b / s,
+        axis,
         rms,
     };
     (out.centre.iter().all(|v| v.is_finite()) && out.a.is_finite()).then_some(out)

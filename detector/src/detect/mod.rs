@@ -53,6 +53,7 @@ pub(crate) mod quads;
 mod read_ahead;
 pub(crate) mod refine;
 pub(crate) mod reject;
+mod rim;
 pub(crate) mod small;
 pub(crate) mod threshold;
 pub(crate) mod verify;
@@ -112,6 +113,11 @@ pub struct Detection {
     /// corners are judged as a nearest-codeword reading's are.
     #[serde(skip)]
     pub(crate) upsampled: bool,
+    /// Read by the rim look (`rim`): its corners are the model fit's, on a
+    /// tag too blurred or small to make a quad, and their uncertainty has
+    /// a floor in proportion to the side (`decoding::RIM_SIGMA_OF_SIDE`).
+    #[serde(skip)]
+    pub(crate) rim: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).
@@ -149,6 +155,10 @@ pub struct StageTimes {
     /// of [`StageTimes::verify`]: the tags found before it are fitted
     /// beside it.
     pub small: Duration,
+    /// The last look, at the disc rims no stage before found a tag in: a
+    /// quad predicted from each rim, its sides measured and decoded
+    /// (`rim`).
+    pub rim: Duration,
     /// One detection per tag, sorted.
     pub dedup: Duration,
     /// Model fit of each detection (with worker threads, of those the
@@ -171,6 +181,7 @@ impl StageTimes {
             ("quads", self.quads),
             ("decode", self.decode),
             ("small", self.small),
+            ("rim", self.rim),
             ("dedup", self.dedup),
             ("verify", self.verify),
             ("total", self.total),
@@ -283,6 +294,10 @@ struct Workspace {
     /// The guessed candidates of a region's full-resolution look, kept
     /// for after its upsampled look ([`small_region`]).
     guessed: Vec<quads::Candidate>,
+    /// The main look's disc rims, for the rim look ([`rim_look`]).
+    rims: Vec<ellipses::Ellipse>,
+    /// The rim look's candidates.
+    rim_cands: Vec<quads::Candidate>,
 }
 
 /// The buffers of stages 1-5, from the working image to candidate quads.
@@ -393,6 +408,73 @@ impl Segmentation {
         times.quads += laps.lap();
         work.scale
     }
+}
+
+/// How far under the smallest readable side (`decoding::RIM_MIN_CELL_PX`)
+/// the side a rim predicts may be for its candidate to be decoded: the
+/// prediction's own error (on the wild set the quads from the rim were
+/// within 10% of the truth's area-equivalent side for 90% of the tags).
+const RIM_SIDE_TOLERANCE: f64 = 0.1;
+
+/// Largest cell (px) of a tag the rim look reads: a tag of larger cells
+/// keeps the one-cell margin around its data square through the blur a
+/// robot's camera sees, and makes a quad of its own. On the wild set
+/// (defocus up to sigma 2 px, motion up to 6 px) the rim look read no tag
+/// with cells over 2.8 px (ct14 sides of 44 px); on the wild benchmark's
+/// 1080p frames with ct14 alone, the ct8 tags and large round clutter it
+/// decoded instead cost 3-3.5 ms a frame.
+const RIM_MAX_CELL_PX: f64 = 4.0;
+
+/// The rim look: a candidate predicted from each of the main look's disc
+/// rims ([`rim::rim_candidate`], `scale` the main look's) whose anchor
+/// lies in no tag `found` so far, decoded in the rims' order, at most
+/// `budget`. Returns the tags found and the candidates decoded.
+fn rim_look(
+    img: &GrayView<'_>,
+    scale: f64,
+    budget: usize,
+    targets: &[decoding::Target],
+    p: &decoding::DecodingParams,
+    ws: &mut Workspace,
+    found: &[decoding::Found],
+) -> (Vec<decoding::Found>, usize) {
+    // The smallest data square a rim reading may have (see
+    // `decoding::RIM_MIN_CELL_PX`), less the rim's own uncertainty: a
+    // rim too small for every family is not decoded.
+    let cells = targets
+        .iter()
+        .map(|t| (t.family.grid() + refine::MARGIN_CELLS) as f64);
+    let min_side = cells.clone().fold(f64::INFINITY, f64::min)
+        * decoding::RIM_MIN_CELL_PX
+        * (1.0 - RIM_SIDE_TOLERANCE);
+    // And the largest: a tag of larger cells keeps a quad of its own.
+    let max_side = cells.fold(0.0, f64::max) * RIM_MAX_CELL_PX * (1.0 + RIM_SIDE_TOLERANCE);
+    let mut cands = std::mem::take(&mut ws.rim_cands);
+    cands.clear();
+    cands.extend(
+        ws.rims
+            .iter()
+            .filter(|e| {
+                let a = crate::math::to_full(e.anchor, scale);
+                !found
+                    .iter()
+                    .any(|f| crate::math::inside(&f.detection().corners, a))
+            })
+            .filter(|e| {
+                // Every side of the square the rim predicts lies between
+                // its two axes over the rim's radius.
+                let (long, short) = rim::side_bounds(e, scale);
+                long >= min_side && short <= max_side
+            })
+            .filter_map(|e| rim::rim_candidate(img, e, scale)),
+    );
+    let params = decoding::DecodingParams {
+        max_attempts: budget,
+        ..*p
+    };
+    let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
+    ws.rim_cands = cands;
+    out
 }
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
@@ -734,6 +816,10 @@ impl Detector {
         // With worker threads, the fits of the tags found so far, made
         // beside the small-tag regions (see `decoding::verify_ahead`).
         let mut ahead = Vec::new();
+        // The main look's rims, kept for the rim look: the small-tag
+        // regions' looks reuse the segmentation's buffers.
+        ws.rims.clear();
+        ws.rims.extend_from_slice(&ws.seg.ellipses);
         if self.config.small_tags && scale > 1.0 {
             let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
             let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
@@ -787,6 +873,14 @@ impl Detector {
                 }
             }
             st.times.small = laps.lap();
+        }
+        // Last, the rims no tag was found in, from the rim alone.
+        {
+            let budget = p.decoding.max_attempts.saturating_sub(attempts);
+            let (more, n) = rim_look(&img, scale, budget, &self.targets, &p.decoding, ws, &found);
+            attempts += n;
+            found.extend(more);
+            st.times.rim = laps.lap();
         }
         let out = match workers {
             None => {

@@ -72,6 +72,10 @@ pub(crate) struct Candidate {
     /// decoded last of all, and never as a rival reading of a tag already
     /// read, since three of its corners are a parallelogram's.
     pub guessed: bool,
+    /// Made from a disc rim alone (`rim`): four estimated corners, the
+    /// sides measured from the rim's prediction. Its reading stands only
+    /// when the tag's model fit sees all four corners.
+    pub rim: Option<super::ellipses::Ellipse>,
 }
 
 /// The two line pieces that meet at a detected corner.
@@ -259,6 +263,7 @@ fn push(
             area,
             linked: false,
             guessed: false,
+            rim: None,
         });
     }
 }
@@ -774,6 +779,7 @@ mod tests {
             b: 33.0,
             anchor: CENTRE,
             checker: true,
+            axis: [1.0, 0.0],
         }
     }
 

@@ -354,6 +354,7 @@ mod tests {
             b: a * 0.8,
             anchor: centre,
             checker: false,
+            axis: [1.0, 0.0],
         }
     }
 

@@ -1,0 +1,62 @@
+//! Small ct14 tags under a defocus of about a cell and more, where the
+//! data square's one-cell margin is blurred into the cells and the frame
+//! and no quad of the square forms, while the disc's rim still does. The
+//! rim look (the detector's last stage) predicts the square from the rim,
+//! measures its sides and reads it; a reading stands only on the model
+//! fit's corners, so none may be rough.
+
+mod common;
+
+use common::*;
+use coppertag::{Detector, DetectorConfig, Family};
+
+/// One ct14 tag with a data square of about `side_px` px, tilted, in a
+/// 640 x 480 frame, blurred by `blur` px.
+fn scene(id: u64, side_px: f64, blur: f32, rng: &mut Rng) -> Scene {
+    let r = rotation(
+        rng.range(-0.6, 0.6),
+        rng.range(-0.6, 0.6),
+        rng.range(0.0, std::f64::consts::TAU),
+    );
+    let (px, py) = (rng.range(120.0, 520.0), rng.range(120.0, 360.0));
+    let mut s = vga_scene(Family::ct14(), id, side_px, &r, px, py);
+    s.blur = blur;
+    s.noise = 1.5;
+    s.seed = rng.next_u64();
+    s
+}
+
+#[test]
+fn tags_blurred_past_their_margin_are_read_from_the_rim() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(29);
+    let total = 40;
+    let mut found = 0;
+    for k in 0..total {
+        let side = rng.range(26.0, 40.0);
+        // Blur of 0.9-1.3 cells (a cell is side / 16): the wild set's
+        // heavy defocus on its smallest tags.
+        let blur = (rng.range(0.9, 1.3) * side / 16.0) as f32;
+        let id = rng.next_u64() % 256;
+        let s = scene(id, side, blur, &mut rng);
+        let out = det.detect(&s.render());
+        assert!(out.len() <= 1, "scene {k}: {out:?}");
+        for d in &out {
+            assert_eq!(d.id, id, "scene {k}: wrong id");
+            let err = corner_errors(&d.corners, &s.corners())
+                .into_iter()
+                .fold(0.0, f64::max);
+            // The wild benchmark's rough-corner rule: 3 px or 5% of the side.
+            assert!(
+                err <= 3.0f64.max(0.05 * side),
+                "scene {k} ({side:.1} px, blur {blur:.2} px): corner {err:.2} px off"
+            );
+            assert!(d.corner_sigma.is_some(), "scene {k}: no model fit");
+            found += 1;
+        }
+    }
+    eprintln!("found {found}/{total}");
+    // Measured: 11 of 40; without the rim look (the detector before it),
+    // 5.
+    assert!(found >= 9, "found {found} of {total}");
+}
