@@ -11,6 +11,16 @@ pub(crate) const INK: u8 = 30;
 /// Grey level of the page in [`tag_image`].
 pub(crate) const PAGE: u8 = 220;
 
+/// Whether point `(u, v)` of the data square (tag units, centre 0, side 1)
+/// of a tag with `n` x `n` cells `cells` is black: a black cell, not the
+/// white margin.
+pub(crate) fn data_black(cells: &[bool], n: usize, u: f64, v: f64) -> bool {
+    let step = 1.0 / (n as f64 + 2.0);
+    let (j, i) = ((u + 0.5) / step - 1.0, (v + 0.5) / step - 1.0);
+    let inside = |k: f64| (0.0..n as f64).contains(&k);
+    inside(i) && inside(j) && cells[i as usize * n + j as usize]
+}
+
 /// A 320 x 320 image of ct14 tag `id` with data-square side `side` px
 /// centred at `c`, turned by `turn` radians, on a white page: black frame,
 /// white margin, cells; and its corners TL, BL, BR, TR (pixel-centre
@@ -28,10 +38,7 @@ pub(crate) fn tag_image(id: u64, side: f64, c: [f64; 2], turn: f64) -> (GrayImag
         } else if u.abs().max(v.abs()) > 0.5 {
             true
         } else {
-            let step = 1.0 / (n as f64 + 2.0);
-            let (j, i) = ((u + 0.5) / step - 1.0, (v + 0.5) / step - 1.0);
-            let inside = |k: f64| (0.0..n as f64).contains(&k);
-            inside(i) && inside(j) && cells[i as usize * n + j as usize]
+            data_black(&cells, n, u, v)
         };
         image::Luma([if black { INK } else { PAGE }])
     });

@@ -8,22 +8,12 @@
 mod common;
 
 use common::*;
-use coppertag::{Detector, DetectorConfig, Family};
+use coppertag::{Detector, DetectorConfig};
 
 /// One ct14 tag with a data square of about `side_px` px, tilted, in a
 /// 640 x 480 frame, blurred by `blur` px.
 fn scene(id: u64, side_px: f64, blur: f32, rng: &mut Rng) -> Scene {
-    let r = rotation(
-        rng.range(-0.4, 0.4),
-        rng.range(-0.4, 0.4),
-        rng.range(0.0, std::f64::consts::TAU),
-    );
-    let (px, py) = (rng.range(120.0, 520.0), rng.range(120.0, 360.0));
-    let mut s = vga_scene(Family::ct14(), id, side_px, &r, px, py);
-    s.blur = blur;
-    s.noise = 2.0;
-    s.seed = rng.next_u64();
-    s
+    blurred_vga_scene(id, side_px, blur, 0.4, 2.0, rng)
 }
 
 #[test]

@@ -370,10 +370,7 @@ mod tests {
             } else if plain || mx > 0.5 {
                 true
             } else {
-                let step = 1.0 / (n as f64 + 2.0);
-                let (j, i) = ((u + 0.5) / step - 1.0, (v + 0.5) / step - 1.0);
-                let inside = |k: f64| (0.0..n as f64).contains(&k);
-                inside(i) && inside(j) && cells[i as usize * n + j as usize]
+                crate::test_images::data_black(&cells, n, u, v)
             };
             image::Luma([if black { 30 } else { 220 }])
         });

@@ -590,3 +590,29 @@ pub fn crops_found(list: &str, max_err: f64) -> Vec<coppertag::Detection> {
     }
     found
 }
+
+/// One ct14 tag `id` with a data square of about `side_px` px in a
+/// 640 x 480 frame, tilted by up to `tilt` radians about each axis and
+/// turned at random, placed at random away from the edges, blurred by
+/// `blur` px, with noise of sigma `noise` grey levels: the blurred small
+/// tags of the likelihood and rim tests.
+pub fn blurred_vga_scene(
+    id: u64,
+    side_px: f64,
+    blur: f32,
+    tilt: f64,
+    noise: f64,
+    rng: &mut Rng,
+) -> Scene {
+    let r = rotation(
+        rng.range(-tilt, tilt),
+        rng.range(-tilt, tilt),
+        rng.range(0.0, std::f64::consts::TAU),
+    );
+    let (px, py) = (rng.range(120.0, 520.0), rng.range(120.0, 360.0));
+    let mut s = vga_scene(Family::ct14(), id, side_px, &r, px, py);
+    s.blur = blur;
+    s.noise = noise;
+    s.seed = rng.next_u64();
+    s
+}
