@@ -63,7 +63,7 @@ impl Detector {
 
     /// Per-stage times of the last detect() call, in seconds: a dict from
     /// stage name (pipeline order: downsample, threshold, contours, lines,
-    /// corners, ellipses, quads, decode, dedup, verify) to time, then "total".
+    /// corners, ellipses, quads, decode, small, rim, dedup, verify) to time, then "total".
     /// All zero before the first call; "downsample" is always zero, as the
     /// downsampling is done (and timed) in the threshold's pass.
     #[getter]

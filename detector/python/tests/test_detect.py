@@ -168,6 +168,6 @@ def test_stats_per_stage(detector) -> None:
     detector.detect(read_grey(fixture_paths()[0]))
     stats = detector.stats
     assert list(stats) == ["downsample", "threshold", "contours", "lines", "corners", "ellipses",
-                           "quads", "decode", "small", "dedup", "verify", "total"]
+                           "quads", "decode", "small", "rim", "dedup", "verify", "total"]
     assert stats["total"] > 0
     assert sum(v for k, v in stats.items() if k != "total") <= stats["total"] * 1.0001
