@@ -32,12 +32,9 @@ fn blurred_small_tags_are_read_by_likelihood_with_right_corners() {
         assert!(out.len() <= 1, "scene {k}: {out:?}");
         for d in &out {
             assert_eq!(d.id, id, "scene {k}: wrong id");
-            let err = corner_errors(&d.corners, &s.corners())
-                .into_iter()
-                .fold(0.0, f64::max);
-            // The wild benchmark's rough-corner rule: 3 px or 5% of the side.
+            let err = worst_corner_error(&d.corners, &s.corners());
             assert!(
-                err <= 3.0f64.max(0.05 * side),
+                err <= rough_bound(side),
                 "scene {k} ({side:.1} px, blur {blur:.2} px): corner {err:.2} px off"
             );
             if d.likelihood {

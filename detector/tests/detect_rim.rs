@@ -33,12 +33,9 @@ fn tags_blurred_past_their_margin_are_read_from_the_rim() {
         assert!(out.len() <= 1, "scene {k}: {out:?}");
         for d in &out {
             assert_eq!(d.id, id, "scene {k}: wrong id");
-            let err = corner_errors(&d.corners, &s.corners())
-                .into_iter()
-                .fold(0.0, f64::max);
-            // The wild benchmark's rough-corner rule: 3 px or 5% of the side.
+            let err = worst_corner_error(&d.corners, &s.corners());
             assert!(
-                err <= 3.0f64.max(0.05 * side),
+                err <= rough_bound(side),
                 "scene {k} ({side:.1} px, blur {blur:.2} px): corner {err:.2} px off"
             );
             assert!(d.corner_sigma.is_some(), "scene {k}: no model fit");

@@ -72,7 +72,7 @@ fn judge(d: &Detection, s: &Scene) -> (f64, bool) {
         })
         .sum::<f64>()
         / 4.0;
-    let rough = errs.iter().any(|&e| e > 3.0_f64.max(0.05 * side));
+    let rough = errs.iter().any(|&e| e > rough_bound(side));
     let measured = errs
         .iter()
         .zip(d.estimated)
@@ -349,9 +349,7 @@ fn no_wrong_id_or_rough_corner(file: &str, id: u64, truth: [[f64; 2]; 4]) {
     let mut det = Detector::new(DetectorConfig::default()).unwrap();
     for d in det.detect(&img) {
         assert_eq!(d.id, id, "{file}: a wrong id: {d:?}");
-        let err = corner_errors(&d.corners, &truth)
-            .into_iter()
-            .fold(0.0, f64::max);
+        let err = worst_corner_error(&d.corners, &truth);
         assert!(err <= 3.0, "{file}: a corner {err:.1} px off: {d:?}");
     }
 }

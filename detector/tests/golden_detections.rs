@@ -122,11 +122,9 @@ fn report() -> (String, Vec<String>) {
             // The sides are the distances from each corner to the next.
             let next = std::array::from_fn(|k| corners[(k + 1) % 4]);
             let side = corner_errors(&corners, &next).iter().sum::<f64>() / 4.0;
-            let allowed = (0.05 * side).max(3.0);
+            let allowed = rough_bound(side);
             for d in &found {
-                let err = corner_errors(&d.corners, &corners)
-                    .into_iter()
-                    .fold(0.0, f64::max);
+                let err = worst_corner_error(&d.corners, &corners);
                 if d.id != id || err > allowed {
                     wrong.push(format!("{} (corner error {err:.2} px)", line(&name, d)));
                 }

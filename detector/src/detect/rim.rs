@@ -148,9 +148,18 @@ fn looks_printed(img: &GrayView<'_>, at: &dyn Fn(f64, f64) -> [f64; 2]) -> bool 
 /// ([`rim_quad`]): its axes over the rim's radius, the singular values of
 /// the affine map, bound every side's length.
 pub(crate) fn side_bounds(e: &Ellipse, scale: f64) -> (f64, f64) {
+    let (a, b) = rim_axes(e, scale);
+    (a / RIM_RADIUS, b / RIM_RADIUS)
+}
+
+/// The semi-axes (full-resolution px) of the printed rim that rim `e`
+/// (working coordinates, `scale` full px per working px) was measured on:
+/// its fitted axes with the border's half-pixel inset
+/// ([`RIM_BORDER_OFFSET`]) put back.
+fn rim_axes(e: &Ellipse, scale: f64) -> (f64, f64) {
     (
-        (e.a + RIM_BORDER_OFFSET) * scale / RIM_RADIUS,
-        (e.b + RIM_BORDER_OFFSET) * scale / RIM_RADIUS,
+        (e.a + RIM_BORDER_OFFSET) * scale,
+        (e.b + RIM_BORDER_OFFSET) * scale,
     )
 }
 
@@ -288,19 +297,13 @@ const RIM_CHECK_POINTS: usize = 32;
 /// it was seen: a fit that took an occluder's edge for a side moves it.
 pub(crate) fn rim_disagreement(h: &Homography, e: &Ellipse, scale: f64) -> f64 {
     let c = to_full(e.centre, scale);
-    let (a, b) = (
-        (e.a + RIM_BORDER_OFFSET) * scale,
-        (e.b + RIM_BORDER_OFFSET) * scale,
-    );
+    let (a, b) = rim_axes(e, scale);
     let (ca, sa) = (e.axis[0], e.axis[1]);
-    let Some(square) = crate::geometry::CORNERS
-        .iter()
-        .map(|&p| h.map(p))
-        .collect::<Option<Vec<_>>>()
+    let [Some(p0), Some(p1), Some(p2), Some(p3)] = crate::geometry::CORNERS.map(|p| h.map(p))
     else {
         return f64::INFINITY;
     };
-    let side = mean_side(&[square[0], square[1], square[2], square[3]]);
+    let side = mean_side(&[p0, p1, p2, p3]);
     let mut worst = 0.0f64;
     for k in 0..RIM_CHECK_POINTS {
         let t = std::f64::consts::TAU * k as f64 / RIM_CHECK_POINTS as f64;
@@ -327,6 +330,7 @@ mod tests {
     use super::*;
     use crate::family::Family;
     use crate::grid_code::encode_cells;
+    use crate::math::sub;
     use image::GrayImage;
 
     const SIDE: f64 = 60.0;
@@ -415,10 +419,6 @@ mod tests {
                     .fold(0.0, f64::max)
             })
             .fold(f64::INFINITY, f64::min)
-    }
-
-    fn sub(a: [f64; 2], b: [f64; 2]) -> [f64; 2] {
-        [a[0] - b[0], a[1] - b[1]]
     }
 
     #[test]

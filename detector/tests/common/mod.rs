@@ -521,6 +521,19 @@ pub fn corner_errors(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4]) -> [f64; 4] {
     })
 }
 
+/// The farthest corner of `found` from `truth` (px).
+pub fn worst_corner_error(found: &[[f64; 2]; 4], truth: &[[f64; 2]; 4]) -> f64 {
+    corner_errors(found, truth).into_iter().fold(0.0, f64::max)
+}
+
+/// The wild benchmark's rough-corner rule: a detection of a tag whose data
+/// square has a mean side of `side` px is rough when some corner lies
+/// farther than this (px) from the truth: 3 px or 5% of the side, the
+/// larger.
+pub fn rough_bound(side: f64) -> f64 {
+    3.0f64.max(0.05 * side)
+}
+
 /// A scene of the paper's simulation: tag of side 0.05 m at distance `d`
 /// metres, rotated by `r`, centred in a 1920 x 1080 frame.
 pub fn paper_scene(family: &'static Family, id: u64, d: f64, r: &Matrix3<f64>) -> Scene {
