@@ -72,10 +72,11 @@ pub(crate) struct Candidate {
     /// decoded last of all, and never as a rival reading of a tag already
     /// read, since three of its corners are a parallelogram's.
     pub guessed: bool,
-    /// Made from a disc rim alone (`rim`): four estimated corners, the
-    /// sides measured from the rim's prediction. Its reading stands only
-    /// when the tag's model fit sees all four corners.
-    pub rim: Option<super::ellipses::Ellipse>,
+    /// Made from a disc rim alone (`rim`): the corners and sides the rim
+    /// predicts, and the print aligned to the image when it was. Its
+    /// reading stands only on the tag's model fit
+    /// (`decoding::rim_reading_stands`).
+    pub rim: Option<super::rim::RimSeen>,
 }
 
 /// The two line pieces that meet at a detected corner.

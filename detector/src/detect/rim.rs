@@ -21,6 +21,7 @@
 //! supports (`decoding::rim_reading_stands`).
 
 use super::ellipses::Ellipse;
+use super::print_align;
 use super::quads::{Candidate, Edges};
 use crate::homography::Homography;
 use crate::math::{mean_side, norm, sample_bilinear, to_full};
@@ -163,12 +164,22 @@ fn rim_axes(e: &Ellipse, scale: f64) -> (f64, f64) {
     )
 }
 
+/// Four corners of a quad (px).
+type Quad = [[f64; 2]; 4];
+
 /// The data square of the tag whose disc rim is `e` (working coordinates,
 /// `scale` full-resolution px per working px), as four corners on the
-/// full-resolution `img` in the order TL, BL, BR, TR up to a rotation, or
-/// `None` when the gradients inside do not fix a rotation or the quad
-/// does not look like a printed tag's ([`looks_printed`]).
-pub(crate) fn rim_quad(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<[[f64; 2]; 4]> {
+/// full-resolution `img`: as the rim and the gradients predict it, in the
+/// order TL, BL, BR, TR up to a rotation, and as the print's fixed look
+/// aligned from there puts it ([`print_align::align`], in the print's own
+/// order), when the alignment holds. `None` when the gradients inside do
+/// not fix a rotation or the quad does not look like a printed tag's
+/// ([`looks_printed`]).
+pub(crate) fn rim_quad(
+    img: &GrayView<'_>,
+    e: &Ellipse,
+    scale: f64,
+) -> Option<(Quad, Option<Quad>)> {
     let c = to_full(e.anchor, scale);
     let (a, b) = side_bounds(e, scale);
     let (ca, sa) = (e.axis[0], e.axis[1]);
@@ -249,7 +260,22 @@ pub(crate) fn rim_quad(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<[[
             c[1] + m[1][0] * u + m[1][1] * v,
         ]
     };
-    Some([at(-0.5, -0.5), at(-0.5, 0.5), at(0.5, 0.5), at(0.5, -0.5)])
+    let predicted = [at(-0.5, -0.5), at(-0.5, 0.5), at(0.5, 0.5), at(0.5, -0.5)];
+    let aligned = print_align::align(img, m, c)
+        .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
+        .map(|a| a.corners);
+    Some((predicted, aligned))
+}
+
+/// What the rim look saw of a candidate's tag (`quads::Candidate::rim`).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct RimSeen {
+    /// The disc rim (working coordinates).
+    pub ellipse: Ellipse,
+    /// The data square's corners (full-resolution px, TL, BL, BR, TR of
+    /// the print) where the print's fixed look aligned to the image
+    /// ([`print_align::align`]), if it did.
+    pub aligned: Option<Quad>,
 }
 
 /// The candidate quad of rim `e` (working coordinates, `scale` full px per
@@ -260,7 +286,7 @@ pub(crate) fn rim_quad(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<[[
 /// rival of a tag already read (`guessed`, as the corners of a
 /// parallelogram).
 pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<Candidate> {
-    let q = rim_quad(img, e, scale)?;
+    let (q, aligned) = rim_quad(img, e, scale)?;
     let o = (scale - 1.0) / 2.0;
     let w = q.map(|p| [(p[0] - o) / scale, (p[1] - o) / scale]);
     let edges = std::array::from_fn(|k| {
@@ -281,7 +307,10 @@ pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Opti
         area,
         linked: false,
         guessed: true,
-        rim: Some(*e),
+        rim: Some(RimSeen {
+            ellipse: *e,
+            aligned,
+        }),
     })
 }
 
@@ -430,7 +459,7 @@ mod tests {
             (2.5, 0.85, -1.0),
         ] {
             let (img, e, truth) = tag(affine(turn, k, phi), false);
-            let q = rim_quad(&GrayView::from(&img), &e, 1.0).expect("a quad");
+            let (q, _) = rim_quad(&GrayView::from(&img), &e, 1.0).expect("a quad");
             // Within 4% of the side: what refinement's windows reach.
             assert!(
                 off(&q, &truth) < 0.04 * SIDE,
