@@ -2,8 +2,10 @@
 //! data square's one-cell margin is blurred into the cells and the frame
 //! and no quad of the square forms, while the disc's rim still does. The
 //! rim look (the detector's last stage) predicts the square from the rim,
-//! measures its sides and reads it; a reading stands only on the model
-//! fit's corners, so none may be rough.
+//! aligns the print's fixed look (frame, bars, ears, disc) to the image
+//! from there and reads the cells at the aligned square; a reading stands
+//! only where the model fit agrees with the alignment, so none may be
+//! rough.
 
 mod common;
 
@@ -43,7 +45,7 @@ fn tags_blurred_past_their_margin_are_read_from_the_rim() {
         }
     }
     eprintln!("found {found}/{total}");
-    // Measured: 11 of 40; without the rim look (the detector before it),
-    // 5.
-    assert!(found >= 9, "found {found} of {total}");
+    // Measured: 17 of 40; with the rim's prediction refined alone (no
+    // alignment, at de2c3d8), 11; without the rim look, 5.
+    assert!(found >= 15, "found {found} of {total}");
 }

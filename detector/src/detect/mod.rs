@@ -426,10 +426,11 @@ const RIM_SIDE_TOLERANCE: f64 = 0.1;
 /// decoded instead cost 3-3.5 ms a frame.
 const RIM_MAX_CELL_PX: f64 = 4.0;
 
-/// The rim look: a candidate predicted from each of the main look's disc
-/// rims ([`rim::rim_candidate`], `scale` the main look's) whose anchor
-/// lies in no tag `found` so far, decoded in the rims' order, at most
-/// `budget`. Returns the tags found and the candidates decoded.
+/// The rim look: a candidate predicted from each of the disc `rims` of
+/// the main look ([`rim::rim_candidate`], `scale` the main look's) whose
+/// anchor lies in no tag `found` so far, decoded in the rims' order, at
+/// most `budget`. Returns the tags found and the candidates decoded.
+#[allow(clippy::too_many_arguments)]
 fn rim_look(
     img: &GrayView<'_>,
     scale: f64,
@@ -437,6 +438,7 @@ fn rim_look(
     targets: &[decoding::Target],
     p: &decoding::DecodingParams,
     ws: &mut Workspace,
+    rims: &[ellipses::Ellipse],
     found: &[decoding::Found],
 ) -> (Vec<decoding::Found>, usize) {
     // The smallest data square a rim reading may have (see
@@ -453,8 +455,7 @@ fn rim_look(
     let mut cands = std::mem::take(&mut ws.rim_cands);
     cands.clear();
     cands.extend(
-        ws.rims
-            .iter()
+        rims.iter()
             .filter(|e| {
                 let a = crate::math::to_full(e.anchor, scale);
                 !found
@@ -875,15 +876,38 @@ impl Detector {
             }
             st.times.small = laps.lap();
         }
-        // Last, the rims no tag was found in, from the rim alone.
-        {
+        // Last, the rims no tag was found in, from the rim alone. The rims
+        // a reading covers are kept: verification may drop the reading.
+        let covered = {
+            let rims = std::mem::take(&mut ws.rims);
             let budget = p.decoding.max_attempts.saturating_sub(attempts);
-            let (more, n) = rim_look(&img, scale, budget, &self.targets, &p.decoding, ws, &found);
+            let (more, n) = rim_look(
+                &img,
+                scale,
+                budget,
+                &self.targets,
+                &p.decoding,
+                ws,
+                &rims,
+                &found,
+            );
+            let covered: Vec<ellipses::Ellipse> = rims
+                .iter()
+                .filter(|e| {
+                    let a = crate::math::to_full(e.anchor, scale);
+                    found
+                        .iter()
+                        .any(|f| crate::math::inside(&f.detection().corners, a))
+                })
+                .copied()
+                .collect();
+            ws.rims = rims;
             attempts += n;
             found.extend(more);
             st.times.rim = laps.lap();
-        }
-        let out = match workers {
+            covered
+        };
+        let mut out = match workers {
             None => {
                 let out = decoding::one_per_tag(found);
                 st.times.dedup = laps.lap();
@@ -896,6 +920,37 @@ impl Detector {
             }
         };
         st.times.verify = laps.lap();
+        // The rims whose covering reading verification dropped get the rim
+        // look after all: on the wild set 51 markers that read at their
+        // true corners lay under a rival reading the fit contradicted.
+        let orphans: Vec<ellipses::Ellipse> = covered
+            .into_iter()
+            .filter(|e| {
+                let a = crate::math::to_full(e.anchor, scale);
+                !out.iter().any(|d| crate::math::inside(&d.corners, a))
+            })
+            .collect();
+        if !orphans.is_empty() {
+            let budget = p.decoding.max_attempts.saturating_sub(attempts);
+            let (more, n) = rim_look(
+                &img,
+                scale,
+                budget,
+                &self.targets,
+                &p.decoding,
+                ws,
+                &orphans,
+                &[],
+            );
+            attempts += n;
+            out.extend(decoding::verify_all(
+                &img,
+                decoding::one_per_tag(more),
+                &self.targets,
+                &p.decoding,
+            ));
+            st.times.rim += laps.lap();
+        }
         st.decode_attempts = attempts;
         st.detections = out.len();
         st.times.total = t0.elapsed();
