@@ -697,6 +697,7 @@ impl Detector {
     /// A detector with validated settings.
     pub fn new(config: DetectorConfig) -> Result<Self> {
         config.validate()?;
+        print_align::prepare();
         let targets = config
             .families
             .iter()
