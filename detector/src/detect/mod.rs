@@ -426,6 +426,17 @@ const RIM_SIDE_TOLERANCE: f64 = 0.1;
 /// decoded instead cost 3-3.5 ms a frame.
 const RIM_MAX_CELL_PX: f64 = 4.0;
 
+/// Whether the anchor of rim `e` (working coordinates, `scale` full px per
+/// working px) lies in any of the `quads` (full-resolution corners).
+fn rim_inside<'a>(
+    e: &ellipses::Ellipse,
+    scale: f64,
+    mut quads: impl Iterator<Item = &'a [[f64; 2]; 4]>,
+) -> bool {
+    let a = crate::math::to_full(e.anchor, scale);
+    quads.any(|q| crate::math::inside(q, a))
+}
+
 /// The rim look: a candidate predicted from each of the disc `rims` of
 /// the main look ([`rim::rim_candidate`], `scale` the main look's) whose
 /// anchor lies in no tag `found` so far, decoded in the rims' order, at
@@ -456,12 +467,7 @@ fn rim_look(
     cands.clear();
     cands.extend(
         rims.iter()
-            .filter(|e| {
-                let a = crate::math::to_full(e.anchor, scale);
-                !found
-                    .iter()
-                    .any(|f| crate::math::inside(&f.detection().corners, a))
-            })
+            .filter(|e| !rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
             .filter(|e| {
                 // Every side of the square the rim predicts lies between
                 // its two axes over the rim's radius.
@@ -894,12 +900,7 @@ impl Detector {
             );
             let covered: Vec<ellipses::Ellipse> = rims
                 .iter()
-                .filter(|e| {
-                    let a = crate::math::to_full(e.anchor, scale);
-                    found
-                        .iter()
-                        .any(|f| crate::math::inside(&f.detection().corners, a))
-                })
+                .filter(|e| rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
                 .copied()
                 .collect();
             ws.rims = rims;
@@ -926,10 +927,7 @@ impl Detector {
         // true corners lay under a rival reading the fit contradicted.
         let orphans: Vec<ellipses::Ellipse> = covered
             .into_iter()
-            .filter(|e| {
-                let a = crate::math::to_full(e.anchor, scale);
-                !out.iter().any(|d| crate::math::inside(&d.corners, a))
-            })
+            .filter(|e| !rim_inside(e, scale, out.iter().map(|d| &d.corners)))
             .collect();
         if !orphans.is_empty() {
             let budget = p.decoding.max_attempts.saturating_sub(attempts);

@@ -244,16 +244,31 @@ fn square(h: &H8) -> Option<[[f64; 2]; 4]> {
     Some([c[0]?, c[1]?, c[2]?, c[3]?])
 }
 
+/// The points of the template's `level` that `h` maps onto the image,
+/// where the image is not saturated: each point, its template value, the
+/// point on the image and the image's level there.
+fn on_image<'a>(
+    img: &'a GrayView<'_>,
+    h: &'a H8,
+    level: &'a Level,
+) -> impl Iterator<Item = ([f64; 2], f64, [f64; 2], f64)> + 'a {
+    level
+        .points
+        .iter()
+        .zip(&level.values)
+        .filter_map(move |(&p, &tv)| {
+            let q = map(h, p)?;
+            let iv = sample_bilinear(img, q[0], q[1]).filter(|&v| v < SATURATED)?;
+            Some((p, tv, q, iv))
+        })
+}
+
 /// Pearson correlation between the template's `level` and the image
 /// under `h`, over its points on the image.
 fn correlation(img: &GrayView<'_>, h: &H8, level: &Level) -> Option<f64> {
-    let (pts, t) = (&level.points, &level.values);
+    let pts = &level.points;
     let (mut n, mut st, mut si, mut stt, mut sii, mut sti) = (0usize, 0.0, 0.0, 0.0, 0.0, 0.0);
-    for (p, &tv) in pts.iter().zip(t) {
-        let Some(q) = map(h, *p) else { continue };
-        let Some(iv) = sample_bilinear(img, q[0], q[1]).filter(|&v| v < SATURATED) else {
-            continue;
-        };
+    for (_, tv, _, iv) in on_image(img, h, level) {
         n += 1;
         st += tv;
         si += iv;
@@ -328,17 +343,15 @@ pub(crate) fn align(img: &GrayView<'_>, m: [[f64; 2]; 2], c: [f64; 2]) -> Option
 /// first `free` of its entries (6: affine) and a gain and an offset.
 fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
     const N: usize = 10;
-    let (pts, t) = (&level.points, &level.values);
+    let pts = &level.points;
     let mut a = SMatrix::<f64, N, N>::zeros();
     let mut g = SVector::<f64, N>::zeros();
     // Gain and offset by least squares first, then the geometric step with
     // them as unknowns too.
     let mut samples = Vec::with_capacity(pts.len());
     let (mut n, mut st, mut si, mut stt, mut sti) = (0usize, 0.0, 0.0, 0.0, 0.0);
-    for (p, &tv) in pts.iter().zip(t) {
-        let Some(q) = map(h, *p) else { continue };
-        let (Some(iv), Some(xl), Some(xr), Some(yu), Some(yd)) = (
-            sample_bilinear(img, q[0], q[1]),
+    for (p, tv, q, iv) in on_image(img, h, level) {
+        let (Some(xl), Some(xr), Some(yu), Some(yd)) = (
             sample_bilinear(img, q[0] - 1.0, q[1]),
             sample_bilinear(img, q[0] + 1.0, q[1]),
             sample_bilinear(img, q[0], q[1] - 1.0),
@@ -346,10 +359,7 @@ fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
         ) else {
             continue;
         };
-        if iv >= SATURATED {
-            continue;
-        }
-        samples.push((*p, tv, q, iv, [(xr - xl) / 2.0, (yd - yu) / 2.0]));
+        samples.push((p, tv, q, iv, [(xr - xl) / 2.0, (yd - yu) / 2.0]));
         n += 1;
         st += tv;
         si += iv;
