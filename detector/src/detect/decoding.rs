@@ -268,7 +268,7 @@ fn rim_attempt(
         .iter()
         .map(|t| (t.family.grid() + MARGIN_CELLS) as f64)
         .fold(0.0, f64::max);
-    seen.aligned
+    seen.aligned(img)
         .and_then(|q| {
             on(&q, Some(&q), true).or_else(|| {
                 (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
@@ -331,19 +331,20 @@ pub(super) const RIM_MIN_CELL_PX: f64 = 1.5;
 const RIM_ALIGN_AGREEMENT_OF_SIDE: f64 = 0.15;
 
 /// A reading `d` of a rim candidate (`quads::Candidate::rim`, the rim `e`
-/// of the look of scale `scale`) on its fitted corners, if it stands: its
-/// tag's model fits ([`Verdict::Fitted`]: neither unfit nor contradicted
-/// by the fit) and the fit puts the disc rim where it was measured
-/// ([`RIM_AGREEMENT_OF_SIDE`]), on a tag of cells of at least
-/// [`RIM_MIN_CELL_PX`]. The fitted corners replace the quad's:
-/// those came from the rim's prediction, with sides measured from it, and
-/// on the wild set the fit's were the closer (one reading kept on its own
-/// corners was 3.1 px off on a 26 px tag, its fit 2.6 px). The caller
-/// also refuses occluded readings
-/// (nearest codeword, erasures over the limit): the rim look is for tags
-/// too blurred or too small to make a quad, and of its occluded readings
-/// on the wild set 4 of 21 had a corner 3-14 px off, where an occluder's
-/// edge was taken for a side.
+/// of the look of scale `scale`), if it stands: its tag's model fits
+/// ([`Verdict::Fitted`]: neither unfit nor contradicted by the fit), the
+/// fit puts the disc rim where it was measured ([`RIM_AGREEMENT_OF_SIDE`])
+/// and the tag has cells of at least [`RIM_MIN_CELL_PX`].
+///
+/// Read on the `aligned` print's corners, the reading reports those, in
+/// its own order, when they lie within [`RIM_ALIGN_AGREEMENT_OF_SIDE`] of
+/// the fit's (on the wild set they were the closer to the truth: 0.31 px
+/// at the median against the fit's 0.75), and an occluded one stands only
+/// where the fit gives every corner a sigma. Read on the refined
+/// prediction (`aligned` none), it reports the fit's corners: the quad's
+/// came from the rim's prediction, with sides measured from it, and on the
+/// wild set the fit's were the closer (one reading kept on its own corners
+/// was 3.1 px off on a 26 px tag, its fit 2.6 px).
 fn rim_reading_stands(
     img: &GrayView<'_>,
     d: Detection,

@@ -169,17 +169,12 @@ type Quad = [[f64; 2]; 4];
 
 /// The data square of the tag whose disc rim is `e` (working coordinates,
 /// `scale` full-resolution px per working px), as four corners on the
-/// full-resolution `img`: as the rim and the gradients predict it, in the
-/// order TL, BL, BR, TR up to a rotation, and as the print's fixed look
-/// aligned from there puts it ([`print_align::align`], in the print's own
-/// order), when the alignment holds. `None` when the gradients inside do
-/// not fix a rotation or the quad does not look like a printed tag's
-/// ([`looks_printed`]).
-pub(crate) fn rim_quad(
-    img: &GrayView<'_>,
-    e: &Ellipse,
-    scale: f64,
-) -> Option<(Quad, Option<Quad>)> {
+/// full-resolution `img`, as the rim and the gradients predict it, in the
+/// order TL, BL, BR, TR up to a rotation, with the affine map of the
+/// tag's plane that makes them (for [`RimSeen::aligned`]). `None` when
+/// the gradients inside do not fix a rotation or the quad does not look
+/// like a printed tag's ([`looks_printed`]).
+pub(crate) fn rim_quad(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<(Quad, Affine)> {
     let c = to_full(e.anchor, scale);
     let (a, b) = side_bounds(e, scale);
     let (ca, sa) = (e.axis[0], e.axis[1]);
@@ -261,10 +256,15 @@ pub(crate) fn rim_quad(
         ]
     };
     let predicted = [at(-0.5, -0.5), at(-0.5, 0.5), at(0.5, 0.5), at(0.5, -0.5)];
-    let aligned = print_align::align(img, m, c)
-        .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
-        .map(|a| a.corners);
-    Some((predicted, aligned))
+    Some((predicted, Affine { m, c }))
+}
+
+/// The affine map of the tag's plane (units of S) into the image
+/// (full-resolution px) that a rim predicts: `c + m (u, v)`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Affine {
+    m: [[f64; 2]; 2],
+    c: [f64; 2],
 }
 
 /// What the rim look saw of a candidate's tag (`quads::Candidate::rim`).
@@ -272,10 +272,23 @@ pub(crate) fn rim_quad(
 pub(crate) struct RimSeen {
     /// The disc rim (working coordinates).
     pub ellipse: Ellipse,
+    /// The tag's projection the rim and the gradients predict, up to a
+    /// quarter turn.
+    predicted: Affine,
+}
+
+impl RimSeen {
     /// The data square's corners (full-resolution px, TL, BL, BR, TR of
-    /// the print) where the print's fixed look aligned to the image
-    /// ([`print_align::align`]), if it did.
-    pub aligned: Option<Quad>,
+    /// the print) where the print's fixed look aligns to `img` from the
+    /// prediction ([`print_align::align`]), if it does. Aligned when the
+    /// candidate is decoded rather than when it is made: the alignment is
+    /// the rim look's costliest step, and a candidate refused before its
+    /// reading, or past the decoding budget, needs none.
+    pub(crate) fn aligned(&self, img: &GrayView<'_>) -> Option<Quad> {
+        print_align::align(img, self.predicted.m, self.predicted.c)
+            .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
+            .map(|a| a.corners)
+    }
 }
 
 /// The candidate quad of rim `e` (working coordinates, `scale` full px per
@@ -286,7 +299,7 @@ pub(crate) struct RimSeen {
 /// rival of a tag already read (`guessed`, as the corners of a
 /// parallelogram).
 pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<Candidate> {
-    let (q, aligned) = rim_quad(img, e, scale)?;
+    let (q, predicted) = rim_quad(img, e, scale)?;
     let o = (scale - 1.0) / 2.0;
     let w = q.map(|p| [(p[0] - o) / scale, (p[1] - o) / scale]);
     let edges = std::array::from_fn(|k| {
@@ -309,7 +322,7 @@ pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Opti
         guessed: true,
         rim: Some(RimSeen {
             ellipse: *e,
-            aligned,
+            predicted,
         }),
     })
 }
