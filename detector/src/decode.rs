@@ -55,6 +55,13 @@ pub struct QuadReading {
     /// The smear rounds the tag's corners off along it; the detector takes
     /// such a reading only from a quad whose four corners it measured.
     pub smeared: bool,
+    /// Read by likelihood at a fitted contrast several times the one its
+    /// frame and margin show: a tag blurred by more than about a cell, or
+    /// one whose frame an occluder or glare covers, which may also have
+    /// moved the quad. Its id is as sure as any likelihood reading's, its
+    /// corners less so: the detector keeps such a reading only where the
+    /// print's fixed look, aligned to the image, confirms them.
+    pub faint: bool,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -387,7 +394,7 @@ pub(crate) fn decode_quad_by(
     // that were no tag); last of all, cell by cell, for a tag whose hidden
     // cells read confidently wrong (an ink-dark or paper-white occluder).
     let book = family.codebook();
-    if let Some(r) = book.and_then(|book| {
+    let blurred = book.and_then(|book| {
         read_blurred(
             img,
             family,
@@ -398,8 +405,12 @@ pub(crate) fn decode_quad_by(
             contrast,
             accept.smeared,
         )
-    }) {
-        return Some(r);
+    });
+    // A faint reading (see `QuadReading::faint`) comes after every other:
+    // it needs the detector's alignment of the print to stand, which the
+    // others do not.
+    if let Some(r) = blurred.as_ref().filter(|r| !r.faint) {
+        return Some(r.clone());
     }
     let nearest = book
         .filter(|_| accept.nearest)
@@ -414,11 +425,13 @@ pub(crate) fn decode_quad_by(
                 Method::Nearest,
             )
         });
-    nearest.or_else(|| {
-        glared
-            .filter(|r| stands_past_limit(family, r))
-            .map(|r| reading_to_quad(r, corners, contrast, Method::Glare))
-    })
+    nearest
+        .or_else(|| {
+            glared
+                .filter(|r| stands_past_limit(family, r))
+                .map(|r| reading_to_quad(r, corners, contrast, Method::Glare))
+        })
+        .or(blurred)
 }
 
 /// The reading of codeword `id` at `rotation` found by matching the whole
@@ -496,6 +509,10 @@ fn read_blurred(
         contrast,
         method,
     )
+    .map(|r| QuadReading {
+        faint: fit.faint(),
+        ..r
+    })
 }
 
 /// First move (px) of a corner coordinate when a quad is aligned to a
@@ -827,6 +844,7 @@ fn reading_to_quad(
         likelihood: matches!(method, Method::Nearest | Method::Blur | Method::Smear),
         smeared: method == Method::Smear,
         occluded: matches!(method, Method::Nearest | Method::Glare),
+        faint: false,
     }
 }
 

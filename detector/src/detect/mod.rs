@@ -114,11 +114,19 @@ pub struct Detection {
     /// corners are judged as a nearest-codeword reading's are.
     #[serde(skip)]
     pub(crate) upsampled: bool,
-    /// Read by the rim look (`rim`): its corners are the model fit's, on a
-    /// tag too blurred or small to make a quad, and their uncertainty has
-    /// a floor in proportion to the side (`decoding::RIM_SIGMA_OF_SIDE`).
+    /// Placed rather than measured: read by the rim look (`rim`), on a tag
+    /// too blurred or small to make a quad, or a faint reading
+    /// (`faint`) confirmed by the aligned print. Its corners are the
+    /// aligned print's or the model fit's, the verify stage keeps them,
+    /// and their uncertainty has a floor in proportion to the side
+    /// (`decoding::RIM_SIGMA_OF_SIDE`).
     #[serde(skip)]
-    pub(crate) rim: bool,
+    pub(crate) placed: bool,
+    /// Read by likelihood at a faint contrast
+    /// (`crate::decode::QuadReading::faint`): it stands only on the
+    /// aligned print (`decoding::unless_faint`).
+    #[serde(skip)]
+    pub(crate) faint: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).

@@ -386,9 +386,9 @@ pub(crate) enum Verdict {
 
 /// Verifies the reading `id` of `family` whose corners (TL, BL, BR, TR,
 /// canonical) are `corners`, whose white-to-black contrast is `contrast`
-/// and which needed `corrected` Reed-Solomon corrections; `occluded` when
-/// it was read by its nearest codeword ([`crate::nearest`]), the only
-/// reading that may then confirm the fitted geometry besides the others.
+/// and which needed `corrected` Reed-Solomon corrections; `kind`, the
+/// readings of the fitted geometry that may confirm it besides the code's
+/// and the blur model's ([`Confirming`]).
 /// `held`: whether a free fit that contradicts the reading gets a second
 /// one held near the reading's geometry ([`PRIOR_SIGMA_CELLS`]). A code
 /// reading near the code's limit gets none: held near its own quad, its
@@ -407,7 +407,7 @@ pub(crate) fn verify(
     corners: &[[f64; 2]; 4],
     contrast: f64,
     corrected: usize,
-    occluded: bool,
+    kind: Confirming,
     held: bool,
     decode: &DecodeParams,
 ) -> Verdict {
@@ -428,16 +428,7 @@ pub(crate) fn verify(
     let Some(fit) = fit_model(img, &model, &h1, cell, contrast, None) else {
         return if shifted {
             // The shifted quad stands on the cells alone; it must read.
-            check(
-                img,
-                family,
-                id,
-                h1,
-                decode,
-                occluded,
-                [false; 4],
-                [f64::NAN; 4],
-            )
+            check(img, family, id, h1, decode, kind, [false; 4], [f64::NAN; 4])
         } else {
             Verdict::Unfit
         };
@@ -448,7 +439,7 @@ pub(crate) fn verify(
         id,
         fit.h,
         decode,
-        occluded,
+        kind,
         fit.unsupported,
         fit.sigma,
     );
@@ -472,7 +463,7 @@ pub(crate) fn verify(
         id,
         held.h,
         decode,
-        occluded,
+        kind,
         held.unsupported,
         held.sigma,
     ) {
@@ -481,8 +472,21 @@ pub(crate) fn verify(
     }
 }
 
-/// The verdict on the geometry `h`: it must still decode to `id` (by its
-/// nearest codeword only for an `occluded` reading).
+/// Which readings of a fitted geometry may confirm a reading, besides
+/// those by the code and by the blur model at a plausible contrast.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Confirming {
+    /// By the nearest codeword ([`crate::nearest`]): for a reading made
+    /// so (an occluded tag).
+    pub nearest: bool,
+    /// A faint one (`crate::decode::QuadReading::faint`): for a faint
+    /// reading. Any other reading is confirmed only as it would have been
+    /// without faint readings, whose geometry is less sure.
+    pub faint: bool,
+}
+
+/// The verdict on the geometry `h`: it must still decode to `id`, by the
+/// readings `kind` allows.
 #[allow(clippy::too_many_arguments)]
 fn check(
     img: &GrayView<'_>,
@@ -490,7 +494,7 @@ fn check(
     id: u64,
     h: Homography,
     decode: &DecodeParams,
-    occluded: bool,
+    kind: Confirming,
     unsupported: [bool; 4],
     sigma: [f64; 4],
 ) -> Verdict {
@@ -498,17 +502,19 @@ fn check(
         return Verdict::Contradicted(None);
     };
     let accept = Accept {
-        nearest: occluded,
+        nearest: kind.nearest,
         limit: None,
         smeared: true,
     };
     match decode_quad_by(img, family, &corners, decode, accept) {
-        Some(r) if r.id == id && r.rotation % 4 == 0 => Verdict::Fitted(Verified {
-            corners,
-            unsupported,
-            sigma,
-            homography: h,
-        }),
+        Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
+            Verdict::Fitted(Verified {
+                corners,
+                unsupported,
+                sigma,
+                homography: h,
+            })
+        }
         _ => Verdict::Contradicted(None),
     }
 }
