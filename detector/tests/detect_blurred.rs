@@ -69,8 +69,14 @@ fn blurred_small_tags_are_read_by_likelihood_with_right_corners() {
 /// was found before).
 #[test]
 fn wild_likelihood_readings_stand_on_their_own_corners() {
-    let found = crops_found("likelihood-crops.csv", 1.6);
-    assert_eq!(found.len(), 4);
+    fitted_likelihood_crops("likelihood-crops.csv", 4, 1.6);
+}
+
+/// Each of the `count` crops of `list` found (`crops_found`, every corner
+/// within `max_err` px) by a likelihood reading the model fit confirmed.
+fn fitted_likelihood_crops(list: &str, count: usize, max_err: f64) {
+    let found = crops_found(list, max_err);
+    assert_eq!(found.len(), count);
     for d in &found {
         assert!(d.likelihood, "not a likelihood reading: {d:?}");
         assert!(d.corner_sigma.is_some(), "not fitted: {d:?}");
@@ -135,10 +141,5 @@ fn blurred_tags_are_not_measured_too_large() {
 /// with the model fit's sigma.
 #[test]
 fn faint_readings_stand_on_the_aligned_print() {
-    let found = crops_found("faint-crops.csv", 0.6);
-    assert_eq!(found.len(), 6);
-    for d in &found {
-        assert!(d.likelihood, "not a likelihood reading: {d:?}");
-        assert!(d.corner_sigma.is_some(), "not fitted: {d:?}");
-    }
+    fitted_likelihood_crops("faint-crops.csv", 6, 0.6);
 }
