@@ -409,8 +409,8 @@ pub(crate) fn decode_quad_by(
     // A faint reading (see `QuadReading::faint`) comes after every other:
     // it needs the detector's alignment of the print to stand, which the
     // others do not.
-    if let Some(r) = blurred.as_ref().filter(|r| !r.faint) {
-        return Some(r.clone());
+    if blurred.as_ref().is_some_and(|r| !r.faint) {
+        return blurred;
     }
     let nearest = book
         .filter(|_| accept.nearest)

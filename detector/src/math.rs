@@ -208,6 +208,14 @@ pub(crate) fn to_full(p: [f64; 2], scale: f64) -> [f64; 2] {
     [p[0] * scale + o, p[1] * scale + o]
 }
 
+/// Mean of the four corners of quad `q`.
+pub(crate) fn centroid(q: &[[f64; 2]; 4]) -> [f64; 2] {
+    [
+        q.iter().map(|p| p[0]).sum::<f64>() / 4.0,
+        q.iter().map(|p| p[1]).sum::<f64>() / 4.0,
+    ]
+}
+
 /// Mean length of the four sides of quad `q`.
 pub(crate) fn mean_side(q: &[[f64; 2]; 4]) -> f64 {
     (0..4).map(|i| norm(sub(q[(i + 1) % 4], q[i]))).sum::<f64>() / 4.0

@@ -24,7 +24,7 @@ use crate::decode::{decode_quad_by, frame_misread_at_corners, Accept, DecodePara
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
-use crate::math::{inside, mean_side, norm, sub, to_full};
+use crate::math::{centroid, inside, mean_side, norm, sub, to_full};
 use crate::view::GrayView;
 
 /// Default of [`DecodingParams::max_rivals`].
@@ -253,10 +253,7 @@ fn rim_attempt(
             .and_then(|d| rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned))
     };
     let jittered = |q: &[[f64; 2]; 4]| {
-        let c = [
-            q.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-            q.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-        ];
+        let c = centroid(q);
         ALIGNED_JITTER.iter().find_map(|&(k, d)| {
             let m = q.map(|p| {
                 [
@@ -448,10 +445,7 @@ fn unless_faint(
     // perspective (tag units, the data square's corners at +-0.5): the
     // alignment's starting point; it resolves the turn itself.
     let q = &d.corners;
-    let c = [
-        q.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        q.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ];
+    let c = centroid(q);
     let half = |a: usize, b: usize, k: usize| (q[a][k] + q[b][k]) / 2.0;
     // TL, BL, BR, TR at (-0.5,-0.5), (-0.5,0.5), (0.5,0.5), (0.5,-0.5).
     let m = [

@@ -893,9 +893,13 @@ impl Detector {
         }
         // Last, the rims no tag was found in, from the rim alone. The rims
         // a reading covers are kept: verification may drop the reading.
-        let covered = {
-            let rims = std::mem::take(&mut ws.rims);
-            let budget = p.decoding.max_attempts.saturating_sub(attempts);
+        // The rim look on `rims` not in a tag of `found`, within the
+        // decoding attempts left, which it counts.
+        let look = |ws: &mut Workspace,
+                    rims: &[ellipses::Ellipse],
+                    found: &[decoding::Found],
+                    attempts: &mut usize| {
+            let budget = p.decoding.max_attempts.saturating_sub(*attempts);
             let (more, n) = rim_look(
                 &img,
                 scale,
@@ -903,16 +907,21 @@ impl Detector {
                 &self.targets,
                 &p.decoding,
                 ws,
-                &rims,
-                &found,
+                rims,
+                found,
             );
+            *attempts += n;
+            more
+        };
+        let covered = {
+            let rims = std::mem::take(&mut ws.rims);
+            let more = look(ws, &rims, &found, &mut attempts);
             let covered: Vec<ellipses::Ellipse> = rims
                 .iter()
                 .filter(|e| rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
                 .copied()
                 .collect();
             ws.rims = rims;
-            attempts += n;
             found.extend(more);
             st.times.rim = laps.lap();
             covered
@@ -938,18 +947,7 @@ impl Detector {
             .filter(|e| !rim_inside(e, scale, out.iter().map(|d| &d.corners)))
             .collect();
         if !orphans.is_empty() {
-            let budget = p.decoding.max_attempts.saturating_sub(attempts);
-            let (more, n) = rim_look(
-                &img,
-                scale,
-                budget,
-                &self.targets,
-                &p.decoding,
-                ws,
-                &orphans,
-                &[],
-            );
-            attempts += n;
+            let more = look(ws, &orphans, &[], &mut attempts);
             out.extend(decoding::verify_all(
                 &img,
                 decoding::one_per_tag(more),

@@ -42,7 +42,7 @@ use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
 use crate::homography::Homography;
-use crate::math::{dot, mean_side, norm, sample_bilinear, sample_profile, sub};
+use crate::math::{centroid, dot, mean_side, norm, sample_bilinear, sample_profile, sub};
 use crate::view::GrayView;
 
 use super::edge_bias::{self, BlurBias, Ruler, GAUSS_QUARTILE_SPAN};
@@ -771,10 +771,7 @@ fn fit_model(
     prior: Option<f64>,
 ) -> Option<Fit> {
     let corners0 = map4(h0)?;
-    let c = [
-        corners0.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        corners0.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ];
+    let c = centroid(&corners0);
     let s = (cell * (model.grid as f64 + 2.0)).max(1.0);
     let nm = Norm { c, s };
     let mut p = params(&(nm.matrix() * h0.matrix()))?;
