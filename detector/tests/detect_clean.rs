@@ -81,15 +81,23 @@ fn sweep(step: usize) -> Vec<(String, Scene)> {
     v
 }
 
+/// Every `step`-th scene of the sweeps, detected across the machine's
+/// cores (one detector per rayon worker; each scene is rendered where it
+/// is detected) and judged in the sweeps' order.
 fn run_sweep(step: usize) {
-    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    use rayon::prelude::*;
     let mut errs = Vec::new();
     let mut fails = Vec::new();
     let mut with_estimated = 0;
     let scenes = sweep(step);
-    for (what, s) in &scenes {
-        let img = s.render();
-        let found = det.detect(&img);
+    let found: Vec<_> = scenes
+        .par_iter()
+        .map_init(
+            || Detector::new(DetectorConfig::default()).unwrap(),
+            |det, (_, s)| det.detect(&s.render()),
+        )
+        .collect();
+    for ((what, s), found) in scenes.iter().zip(found) {
         match found.as_slice() {
             [d] if d.id == s.id && d.family == s.family.name() => {
                 let e = corner_errors(&d.corners, &s.corners());

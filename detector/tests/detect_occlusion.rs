@@ -117,9 +117,36 @@ fn paper_occlusion_patterns_all() {
     assert!(missed.is_empty(), "missed: {missed:#?}");
 }
 
+/// The procedural study: `per_cell` scenes per scenario and occluded
+/// share in `fracs`. The scenes are drawn in order from one seed, then
+/// detected across the machine's cores (one detector per rayon worker)
+/// and tallied in that order: the same outcomes as one detector in one
+/// loop, in half the time on two cores.
 fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
-    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    use rayon::prelude::*;
     let mut rng = Rng::new(2024);
+    let mut scenes = Vec::new();
+    for kind in SCENARIOS {
+        for &frac in fracs {
+            for _ in 0..per_cell {
+                let grey = SHADES[(rng.next_u64() % 3) as usize];
+                let turn = (rng.next_u64() % 4) as u32;
+                let jitter = rng.uniform();
+                scenes.push((kind, frac, scene(kind, frac, &mut rng, grey, turn, jitter)));
+            }
+        }
+    }
+    let outcomes: Vec<(Outcome, Vec<f64>)> = scenes
+        .par_iter()
+        .map_init(
+            || Detector::new(DetectorConfig::default()).unwrap(),
+            |det, (_, _, s)| {
+                let mut errs = Vec::new();
+                (run_scene(det, s, &mut errs), errs)
+            },
+        )
+        .collect();
+    let mut outcomes = scenes.iter().zip(outcomes);
     let mut errs = Vec::new();
     let mut report = String::new();
     let mut worst: f64 = 1.0;
@@ -129,12 +156,10 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
         let (mut low_found, mut low_n) = (0usize, 0usize);
         for &frac in fracs {
             let mut found = 0;
-            for _ in 0..per_cell {
-                let grey = SHADES[(rng.next_u64() % 3) as usize];
-                let turn = (rng.next_u64() % 4) as u32;
-                let jitter = rng.uniform();
-                let s = scene(kind, frac, &mut rng, grey, turn, jitter);
-                match run_scene(&mut det, &s, &mut errs) {
+            for ((k, f, _), (outcome, e)) in outcomes.by_ref().take(per_cell) {
+                debug_assert!(*k == kind && *f == frac);
+                errs.extend(e);
+                match outcome {
                     Outcome::Found => found += 1,
                     Outcome::Missed => {}
                     Outcome::WrongId => panic!("wrong id: {kind:?} {frac}"),
