@@ -132,7 +132,7 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
                 let grey = SHADES[(rng.next_u64() % 3) as usize];
                 let turn = (rng.next_u64() % 4) as u32;
                 let jitter = rng.uniform();
-                scenes.push((kind, frac, scene(kind, frac, &mut rng, grey, turn, jitter)));
+                scenes.push(scene(kind, frac, &mut rng, grey, turn, jitter));
             }
         }
     }
@@ -140,13 +140,15 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
         .par_iter()
         .map_init(
             || Detector::new(DetectorConfig::default()).unwrap(),
-            |det, (_, _, s)| {
+            |det, s| {
                 let mut errs = Vec::new();
                 (run_scene(det, s, &mut errs), errs)
             },
         )
         .collect();
-    let mut outcomes = scenes.iter().zip(outcomes);
+    // In the order the scenes were drawn: per_cell of each scenario and
+    // share, as the loops below take them.
+    let mut outcomes = outcomes.into_iter();
     let mut errs = Vec::new();
     let mut report = String::new();
     let mut worst: f64 = 1.0;
@@ -156,8 +158,7 @@ fn procedural(per_cell: usize, fracs: &[f64], assert_rate: Option<f64>) {
         let (mut low_found, mut low_n) = (0usize, 0usize);
         for &frac in fracs {
             let mut found = 0;
-            for ((k, f, _), (outcome, e)) in outcomes.by_ref().take(per_cell) {
-                debug_assert!(*k == kind && *f == frac);
+            for (outcome, e) in outcomes.by_ref().take(per_cell) {
                 errs.extend(e);
                 match outcome {
                     Outcome::Found => found += 1,

@@ -638,11 +638,7 @@ fn hidden_corners_plausible(corners: &[[f64; 2]; 4], hidden: [bool; 4]) -> bool 
 
 /// Centroid of a candidate's corners at full resolution.
 pub(super) fn centre_of(cand: &Candidate, scale: f64) -> [f64; 2] {
-    let c = cand.corners.map(|q| to_full(q, scale));
-    [
-        (c[0][0] + c[1][0] + c[2][0] + c[3][0]) / 4.0,
-        (c[0][1] + c[1][1] + c[2][1] + c[3][1]) / 4.0,
-    ]
+    centroid(&cand.corners.map(|q| to_full(q, scale)))
 }
 
 /// What becomes of a candidate given the tags found so far ([`plan`]).

@@ -26,7 +26,7 @@
 use super::ellipses::Ellipse;
 use super::quads::Candidate;
 use super::Detection;
-use crate::math::{inside, to_full};
+use crate::math::{centroid, inside, to_full};
 use crate::view::GrayView;
 
 /// Ratio of the disc's radius to the data square's side: the black disc
@@ -245,18 +245,14 @@ pub(crate) fn of_rim(c: &Candidate, r: &Region, zoom: f64) -> Option<Candidate> 
     let back = |v: f64| (v + 0.5) / zoom - 0.5;
     let mv = |p: [f64; 2]| [back(p[0]) + dx, back(p[1]) + dy];
     let q = c.corners.map(mv);
-    let centroid = [
-        (q[0][0] + q[1][0] + q[2][0] + q[3][0]) / 4.0,
-        (q[0][1] + q[1][1] + q[2][1] + q[3][1]) / 4.0,
-    ];
-    if dist(centroid, r.centre) > MAX_CENTRE_OFFSET * r.axis {
+    if dist(centroid(&q), r.centre) > MAX_CENTRE_OFFSET * r.axis {
         return None;
     }
     if (0..4).any(|i| dist(q[i], q[(i + 1) % 4]) > MAX_SIDE_PER_AXIS * r.axis) {
         return None;
     }
     let mut out = *c;
-    out.corners = c.corners.map(mv);
+    out.corners = q;
     for e in out.edges.iter_mut().flatten() {
         e.incoming = e.incoming.map(mv);
         e.outgoing = e.outgoing.map(mv);
