@@ -13,8 +13,10 @@
 //! runs, so one preempted run does not count), the median over frames of
 //! every stage's time (from [`coppertag::Detector::stats`]) and the ratios
 //! of the one-thread times to the others (it stops if the two detect
-//! anything differently); criterion then times the whole set on one
-//! thread. Frames are rendered once, before any timing.
+//! anything differently), and the machine's own ceiling for that speed-up
+//! (as many one-thread detectors run side by side: see [`side_by_side`]);
+//! criterion then times the whole set on one thread. Frames are rendered
+//! once, before any timing.
 //!
 //! `cargo bench -p coppertag --bench wild`; set `COPPERTAG_BENCH_ROUNDS`
 //! to change the number of runs per frame of the printed summary,
@@ -256,6 +258,70 @@ fn summary(dets: &mut [(String, Detector)], set: &FrameSet, rounds: usize) {
     }
 }
 
+/// The machine's own ceiling for a speed-up on `n` threads: each frame of
+/// `set` timed, round after round, on a one-thread detector alone and
+/// on `n` one-thread detectors at once, each on a thread of its own and
+/// each started on the frame at the same moment (a barrier). They share
+/// nothing but the machine, so how much slower each runs beside the others
+/// than alone is what the cores (shared caches, memory, a virtual
+/// machine's host) take from any `n`-thread run, however well its work is
+/// split: `n` threads can at best be `n / slow-down` times faster than
+/// one. Prints the per-frame medians and that bound.
+fn side_by_side(set: &FrameSet, n: usize, rounds: usize, make: impl Fn() -> Detector) {
+    let mut dets: Vec<Detector> = (0..n).map(|_| make()).collect();
+    let frames = set.frames.len();
+    let (mut alone, mut together) = (vec![Vec::new(); frames], vec![Vec::new(); frames]);
+    // The whole set alone, then the whole set side by side, the order
+    // turned round every round: a machine that runs its cores faster while
+    // one of them is idle keeps that pace for a while, and would otherwise
+    // favour whichever came first.
+    for round in 0..rounds {
+        for together_now in [round % 2 == 1, round % 2 == 0] {
+            for (i, frame) in set.frames.iter().enumerate() {
+                if !together_now {
+                    dets[0].detect(frame);
+                    alone[i].push(dets[0].stats().times.total);
+                    continue;
+                }
+                let start = std::sync::Barrier::new(n);
+                let each: Vec<Duration> = std::thread::scope(|s| {
+                    let jobs: Vec<_> = dets
+                        .iter_mut()
+                        .map(|d| {
+                            let start = &start;
+                            s.spawn(move || {
+                                start.wait();
+                                d.detect(frame);
+                                d.stats().times.total
+                            })
+                        })
+                        .collect();
+                    jobs.into_iter()
+                        .map(|j| j.join().expect("detector thread"))
+                        .collect()
+                });
+                // Each detector's time is one measurement under the
+                // others' load: their mean is the frame's.
+                together[i].push(each.iter().sum::<Duration>() / n as u32);
+            }
+        }
+    }
+    let per_frame =
+        |v: &[Vec<Duration>]| -> Vec<Duration> { v.iter().map(|r| quantile(r, 0.5)).collect() };
+    let (a, t) = (
+        quantile(&per_frame(&alone), 0.5),
+        quantile(&per_frame(&together), 0.5),
+    );
+    let slow = t.as_secs_f64() / a.as_secs_f64().max(1e-12);
+    println!(
+        "  {} side by side: {n} one-thread detectors at once took a median {} per frame each, against {} alone ({slow:.2}x): on this machine now, {n} threads can be at most about {:.2}x faster than one",
+        set.name,
+        ms(t),
+        ms(a),
+        n as f64 / slow
+    );
+}
+
 fn bench(c: &mut Criterion) {
     let t0 = Instant::now();
     let only = std::env::var("COPPERTAG_BENCH_SETS").ok();
@@ -303,6 +369,9 @@ fn bench(c: &mut Criterion) {
     }
     for set in &sets {
         summary(&mut dets, set, rounds);
+        if threads > 1 {
+            side_by_side(set, threads, rounds, || detector(1).1);
+        }
     }
     let mut det = dets.swap_remove(0).1;
     let mut group = c.benchmark_group("wild");
