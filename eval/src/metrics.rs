@@ -169,11 +169,14 @@ fn one_session() -> usize {
     1
 }
 
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
+/// Distance between two points (px).
+pub(crate) fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
-fn centre(c: &[[f64; 2]; 4]) -> [f64; 2] {
+/// Mean of a quad's four corners: where a detection is matched to a
+/// marker (here and in `wild`).
+pub(crate) fn centre(c: &[[f64; 2]; 4]) -> [f64; 2] {
     [
         c.iter().map(|p| p[0]).sum::<f64>() / 4.0,
         c.iter().map(|p| p[1]).sum::<f64>() / 4.0,

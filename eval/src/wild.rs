@@ -28,7 +28,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::draws::{Draws, FactorValue, Factors};
 use crate::error::Result;
-use crate::metrics::MatchRule;
+use crate::metrics::{centre, dist, MatchRule};
 use crate::pose_error::{pose_error, CameraModel, PoseError};
 use crate::runlog::RunLog;
 use crate::truth::Dataset;
@@ -137,17 +137,6 @@ pub fn open_extras(dirs: &[&Path]) -> Result<(Option<Draws>, CameraModel)> {
         reason: "no dataset directory".into(),
     })?;
     Ok((draws, camera))
-}
-
-fn centre(c: &[[f64; 2]; 4]) -> [f64; 2] {
-    [
-        c.iter().map(|p| p[0]).sum::<f64>() / 4.0,
-        c.iter().map(|p| p[1]).sum::<f64>() / 4.0,
-    ]
-}
-
-fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
-    (a[0] - b[0]).hypot(a[1] - b[1])
 }
 
 /// Evaluates `run` on `dataset` marker by marker.
