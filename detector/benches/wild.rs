@@ -274,7 +274,9 @@ fn side_by_side(set: &FrameSet, n: usize, rounds: usize, make: impl Fn() -> Dete
     // The whole set alone, then the whole set side by side, the order
     // turned round every round: a machine that runs its cores faster while
     // one of them is idle keeps that pace for a while, and would otherwise
-    // favour whichever came first.
+    // favour whichever came first. (The time alone is taken here again,
+    // not from `summary`'s one-thread run, so that both sides of the
+    // ratio see the same spells of the machine.)
     for round in 0..rounds {
         for together_now in [round % 2 == 1, round % 2 == 0] {
             for (i, frame) in set.frames.iter().enumerate() {
