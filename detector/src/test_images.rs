@@ -26,7 +26,17 @@ pub(crate) fn data_black(cells: &[bool], n: usize, u: f64, v: f64) -> bool {
 /// white margin, cells; and its corners TL, BL, BR, TR (pixel-centre
 /// coordinates).
 pub(crate) fn tag_image(id: u64, side: f64, c: [f64; 2], turn: f64) -> (GrayImage, [[f64; 2]; 4]) {
-    let fam = Family::ct14();
+    family_tag_image(Family::ct14(), id, side, c, turn)
+}
+
+/// [`tag_image`] of a tag of family `fam`.
+pub(crate) fn family_tag_image(
+    fam: &Family,
+    id: u64,
+    side: f64,
+    c: [f64; 2],
+    turn: f64,
+) -> (GrayImage, [[f64; 2]; 4]) {
     let n = fam.grid();
     let cells = encode_cells(fam, id).unwrap();
     let (cs, sn) = (turn.cos(), turn.sin());

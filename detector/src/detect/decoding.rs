@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use super::outline::data_square_within;
 use super::parallel::Workers;
+use super::pitch::{rules_out, shown_grid};
 use super::print_align;
 use super::quads::Candidate;
 use super::refine::{refine_candidate, RefineParams, RefineScratch, MARGIN_CELLS};
@@ -166,12 +167,19 @@ fn attempt(
         return rim_attempt(img, cand, &seen, scale, centre, targets, p, scratch);
     }
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-    let own = read(img, cand, &q, centre, targets, &p.decode)
-        .filter(|d| {
-            !d.occluded
-                || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-        })
-        .and_then(|d| unless_faint(img, d, targets, p));
+    let own = read(
+        img,
+        cand,
+        &q,
+        centre,
+        targets,
+        &p.decode,
+        shown_grid(img, &q),
+    )
+    .filter(|d| {
+        !d.occluded || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+    })
+    .and_then(|d| unless_faint(img, d, targets, p));
     own.map(|det| Reading {
         det,
         outline: false,
@@ -184,18 +192,25 @@ fn attempt(
         // middle half, not a quad of its own edges (on the wild set, one
         // at ct14's limit had an occluded corner 3.7 px off).
         let inner = data_square_within(img, &q)?;
-        read(img, cand, &inner, centre, targets, &p.decode)
-            .filter(|d| {
-                if d.occluded {
-                    target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-                } else {
-                    d.likelihood
-                        || target_of(targets, d)
-                            .is_some_and(|t| outline_reading_stands(img, d, t, p))
-                }
-            })
-            .and_then(|d| unless_faint(img, d, targets, p))
-            .map(|det| Reading { det, outline: true })
+        read(
+            img,
+            cand,
+            &inner,
+            centre,
+            targets,
+            &p.decode,
+            shown_grid(img, &inner),
+        )
+        .filter(|d| {
+            if d.occluded {
+                target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+            } else {
+                d.likelihood
+                    || target_of(targets, d).is_some_and(|t| outline_reading_stands(img, d, t, p))
+            }
+        })
+        .and_then(|d| unless_faint(img, d, targets, p))
+        .map(|det| Reading { det, outline: true })
     })
 }
 
@@ -246,13 +261,16 @@ fn rim_attempt(
     scratch: &mut RefineScratch,
 ) -> Option<Reading> {
     // The reading of the cells at `q`, if it stands; `aligned`, the
-    // aligned print's corners it reports (none: the fit's).
-    let on = |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool| {
-        read(img, cand, q, centre, targets, &p.decode)
+    // aligned print's corners it reports (none: the fit's); `shown`, the
+    // grid the square shows (`pitch::shown_grid`).
+    let on = |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown| {
+        read(img, cand, q, centre, targets, &p.decode, shown)
             .filter(|d| occluded || !d.occluded)
             .and_then(|d| rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned))
     };
-    let jittered = |q: &[[f64; 2]; 4]| {
+    // The moves read as the grid their square shows: they move it by a
+    // third of a pixel.
+    let jittered = |q: &[[f64; 2]; 4], shown| {
         let c = centroid(q);
         ALIGNED_JITTER.iter().find_map(|&(k, d)| {
             let m = q.map(|p| {
@@ -261,7 +279,7 @@ fn rim_attempt(
                     c[1] + k * (p[1] - c[1]) + d[1],
                 ]
             });
-            on(&m, Some(q), false)
+            on(&m, Some(q), false, shown)
         })
     };
     // The moves only where a third of a pixel matters: cells of at most
@@ -272,19 +290,16 @@ fn rim_attempt(
         .fold(0.0, f64::max);
     seen.aligned(img)
         .and_then(|q| {
-            on(&q, Some(&q), true).or_else(|| {
+            let shown = shown_grid(img, &q);
+            on(&q, Some(&q), true, shown).or_else(|| {
                 (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
-                    .then(|| jittered(&q))
+                    .then(|| jittered(&q, shown))
                     .flatten()
             })
         })
         .or_else(|| {
-            on(
-                &refine_candidate(img, cand, scale, &p.refine, scratch),
-                None,
-                false,
-            )
-            .and_then(|d| unless_faint(img, d, targets, p))
+            let q = refine_candidate(img, cand, scale, &p.refine, scratch);
+            on(&q, None, false, shown_grid(img, &q)).and_then(|d| unless_faint(img, d, targets, p))
         })
         .map(|det| Reading {
             det,
@@ -761,6 +776,9 @@ fn finest_grid(p: &RefineParams) -> usize {
 /// The best reading of the refined quad `q` over the target families: the
 /// fewest corrections, the first family on a tie. `centre` (the quad's
 /// centroid) stands in for the tag centre if the homography cannot map it.
+/// `shown`: the grid the square shows ([`shown_grid`]), whose families
+/// alone it is read as.
+#[allow(clippy::too_many_arguments)]
 fn read(
     img: &GrayView<'_>,
     cand: &Candidate,
@@ -768,12 +786,19 @@ fn read(
     centre: [f64; 2],
     targets: &[Target],
     params: &DecodeParams,
+    shown: Option<usize>,
 ) -> Option<Detection> {
     let mut best: Option<Detection> = None;
     for t in targets {
         // A clean read cannot be beaten by another family.
         if best.as_ref().is_some_and(|b| b.corrected == 0) {
             break;
+        }
+        // A family whose grid the square does not show cannot read
+        // (`pitch`), and its readings are the costliest of a frame that
+        // holds the other family's tags.
+        if shown.is_some_and(|g| rules_out(g, &t.family)) {
+            continue;
         }
         // A reading by the code over the family's limit counts as none,
         // so that the grid's other readings are tried.

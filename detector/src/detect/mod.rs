@@ -49,6 +49,7 @@ pub(crate) mod ellipses;
 pub(crate) mod lines;
 mod outline;
 mod parallel;
+mod pitch;
 mod print_align;
 pub(crate) mod quads;
 mod read_ahead;
