@@ -167,19 +167,20 @@ fn attempt(
         return rim_attempt(img, cand, &seen, scale, centre, targets, p, scratch);
     }
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-    let own = read(
-        img,
-        cand,
-        &q,
-        centre,
-        targets,
-        &p.decode,
-        shown_grid(img, &q),
-    )
-    .filter(|d| {
-        !d.occluded || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-    })
-    .and_then(|d| unless_faint(img, d, targets, p));
+    let shown = shown_grid(img, &q);
+    // A square showing another family's cells is that family's data
+    // square, not a tag's outline around a blurred one either (the
+    // outline's interior shows the cells at 0.8 of the square's scale,
+    // off every family's period).
+    if shown.is_some_and(|g| none_can_read(g, targets)) {
+        return None;
+    }
+    let own = read(img, cand, &q, centre, targets, &p.decode, shown)
+        .filter(|d| {
+            !d.occluded
+                || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+        })
+        .and_then(|d| unless_faint(img, d, targets, p));
     own.map(|det| Reading {
         det,
         outline: false,
@@ -288,9 +289,16 @@ fn rim_attempt(
         .iter()
         .map(|t| (t.family.grid() + MARGIN_CELLS) as f64)
         .fold(0.0, f64::max);
-    seen.aligned(img)
-        .and_then(|q| {
-            let shown = shown_grid(img, &q);
+    let aligned = seen.aligned(img).map(|q| (q, shown_grid(img, &q)));
+    // A print aligned as another family's tag is not refined and read
+    // again: the refined quad is the same square.
+    if let Some((_, Some(g))) = aligned {
+        if none_can_read(g, targets) {
+            return None;
+        }
+    }
+    aligned
+        .and_then(|(q, shown)| {
             on(&q, Some(&q), true, shown).or_else(|| {
                 (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
                     .then(|| jittered(&q, shown))
@@ -305,6 +313,12 @@ fn rim_attempt(
             det,
             outline: false,
         })
+}
+
+/// Whether a square showing grid `shown` ([`shown_grid`]) rules out
+/// every target family.
+fn none_can_read(shown: usize, targets: &[Target]) -> bool {
+    targets.iter().all(|t| rules_out(shown, &t.family))
 }
 
 /// Whether a code reading of a data square taken inside an outline
