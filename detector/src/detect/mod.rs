@@ -18,8 +18,10 @@
 //!    diagonal occlusion cases (the paper's Algorithm 2) and, last, one
 //!    corner around the centre checker; each carries the edge pieces its
 //!    corners were seen on;
-//! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces)
-//!    then [`crate::decode_quad_with`] at full resolution (the cells read
+//! 6. `decoding`: `refine` (sub-pixel corners along those edge pieces),
+//!    `pitch` (which built-in family's cell grid the square shows: the
+//!    other family is not read on it), then [`crate::decode_quad_with`]
+//!    at full resolution (the cells read
 //!    one by one through the Reed-Solomon code; for a ct14 tag the code
 //!    cannot read, as a whole against every codeword, cell by cell or as
 //!    the blur shows it: `likelihood`), rival readings of
