@@ -172,7 +172,7 @@ fn attempt(
     // square, not a tag's outline around a blurred one either (the
     // outline's interior shows the cells at 0.8 of the square's scale,
     // off every family's period).
-    if shown.is_some_and(|g| none_can_read(g, targets)) {
+    if none_can_read(shown, targets) {
         return None;
     }
     let own = read(img, cand, &q, centre, targets, &p.decode, shown)
@@ -292,10 +292,8 @@ fn rim_attempt(
     let aligned = seen.aligned(img).map(|q| (q, shown_grid(img, &q)));
     // A print aligned as another family's tag is not refined and read
     // again: the refined quad is the same square.
-    if let Some((_, Some(g))) = aligned {
-        if none_can_read(g, targets) {
-            return None;
-        }
+    if aligned.is_some_and(|(_, shown)| none_can_read(shown, targets)) {
+        return None;
     }
     aligned
         .and_then(|(q, shown)| {
@@ -315,10 +313,10 @@ fn rim_attempt(
         })
 }
 
-/// Whether a square showing grid `shown` ([`shown_grid`]) rules out
-/// every target family.
-fn none_can_read(shown: usize, targets: &[Target]) -> bool {
-    targets.iter().all(|t| rules_out(shown, &t.family))
+/// Whether the grid a square shows (`shown`, [`shown_grid`]) rules out
+/// every target family; never when it shows none.
+fn none_can_read(shown: Option<usize>, targets: &[Target]) -> bool {
+    shown.is_some_and(|g| targets.iter().all(|t| rules_out(g, &t.family)))
 }
 
 /// Whether a code reading of a data square taken inside an outline

@@ -42,8 +42,8 @@ const EDGE_SKIP: usize = 3;
 /// (cells per side) on the data square `q` (corners TL, BL, BR, TR, px)
 /// of `img`: from 1 (all edges on the grid lines) through 0 (no
 /// preference) to -1 (all edges halfway between). `None` when the square
-/// leaves the image or shows no edge.
-pub(crate) fn grid_phase<const N: usize>(
+/// leaves the image, is no convex quad, or shows no edge.
+fn grid_phase<const N: usize>(
     img: &GrayView<'_>,
     q: &[[f64; 2]; 4],
     grids: [usize; N],
@@ -52,8 +52,17 @@ pub(crate) fn grid_phase<const N: usize>(
     let sample = sampler_within(img, q)?;
     let m = h.matrix();
     let m: [[f64; 3]; 3] = std::array::from_fn(|r| std::array::from_fn(|c| m[(r, c)]));
-    // The homography written out, as in `Homography::map`; inside the
-    // square its weight keeps the sign of the corners' (a convex quad).
+    // The homography's weight is affine in (u, v): of one sign at the four
+    // corners, it keeps it over the whole square, which then maps onto the
+    // convex quad between the corners, inside the image (`sampler_within`).
+    let weight = |[u, v]: [f64; 2]| m[2][0] * u + m[2][1] * v + m[2][2];
+    let signs = CORNERS.map(|c| weight(c) > 0.0);
+    if signs.iter().any(|&s| s != signs[0]) || CORNERS.iter().any(|&c| weight(c) == 0.0) {
+        return None;
+    }
+    // The homography written out, as in `Homography::map` but without its
+    // `Option` per point (the weight cannot vanish, above): the samples
+    // are most of this step's cost.
     let at = |u: f64, v: f64| {
         let w = 1.0 / (m[2][0] * u + m[2][1] * v + m[2][2]);
         sample(
@@ -66,15 +75,11 @@ pub(crate) fn grid_phase<const N: usize>(
     // (k + 1) / SAMPLES from the square's side; summed over the lines of
     // both directions, it is a profile of that position alone.
     let mut profile = [0.0f64; SAMPLES - 1];
-    let mut line = [[0.0f64; SAMPLES]; 2];
     for i in 0..LINES {
         let across = pos(i, LINES);
-        for (k, s) in (0..SAMPLES).zip(0..) {
-            let along = pos(k, SAMPLES);
-            line[0][s] = at(along, across);
-            line[1][s] = at(across, along);
-        }
-        for l in &line {
+        let row: [f64; SAMPLES] = std::array::from_fn(|k| at(pos(k, SAMPLES), across));
+        let column: [f64; SAMPLES] = std::array::from_fn(|k| at(across, pos(k, SAMPLES)));
+        for l in [row, column] {
             for (p, w) in profile.iter_mut().zip(l.windows(2)) {
                 *p += (w[1] - w[0]).abs();
             }
@@ -202,6 +207,24 @@ mod tests {
             let q = [[60.0, 60.0], [60.0, 140.0], [140.0, 140.0], [140.0, 60.0]];
             assert_eq!(shown_grid(&GrayView::from(&img), &q), None, "{period:?}");
         }
+    }
+
+    #[test]
+    fn a_square_off_the_image_or_no_square_shows_none() {
+        let (img, q) = family_tag_image(Family::ct8(), 4321, 90.0, [160.0, 160.0], 0.2);
+        let view = GrayView::from(&img);
+        assert_eq!(shown_grid(&view, &q), Some(8));
+        let shifted = q.map(|p| [p[0] + 200.0, p[1]]);
+        let mut nan = q;
+        nan[2] = [f64::NAN, 100.0];
+        let point = [q[0]; 4];
+        // TL and BL swapped: the sides cross (a bow tie).
+        let bow = [q[1], q[0], q[2], q[3]];
+        for bad in [shifted, nan, point, bow] {
+            assert_eq!(shown_grid(&view, &bad), None, "{bad:?}");
+        }
+        let empty = image::GrayImage::new(0, 0);
+        assert_eq!(shown_grid(&GrayView::from(&empty), &q), None);
     }
 
     #[test]
