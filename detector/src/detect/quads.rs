@@ -32,10 +32,11 @@
 //! 4-cycles and triangles that cross borders only along bridged sides;
 //! those linked candidates are decoded after all others. Candidates
 //! are sorted real corners first, larger first (but a data square before
-//! the printed outline around it), and near-duplicates dropped. An estimated corner with a detected corner beside it also
-//! gives a second candidate that uses the detected one (the paper's
-//! Replace-Fake-Corners); both are kept, because the detected corner may be
-//! where an occluder's edge crosses the tag's. The decoder settles it: of
+//! the printed outline around it), and near-duplicates dropped. An
+//! estimated corner with a detected corner beside it also gives a second
+//! candidate that uses the detected one (the paper's Replace-Fake-Corners);
+//! both are kept, because the detected corner may be where an occluder's
+//! edge crosses the tag's. The decoder settles it: of
 //! the candidates over one tag, the reading with the fewest corrections
 //! wins.
 
@@ -573,8 +574,10 @@ const DATA_SQUARE_SHARE: (f64, f64) = (0.35, 0.65);
 /// 0.11 at 15 cm, 60 degrees of tilt and 30 of yaw.
 const DATA_SQUARE_OFFSET: f64 = 0.15;
 
-/// Moves every candidate that lies in the middle of an earlier one as a
-/// data square lies in its printed outline to just before it. Sorted
+/// Moves every candidate with four seen corners that lies in the middle
+/// of an earlier one as a data square lies in its printed outline to just
+/// before it (one with an estimated corner stays: its reading would beat
+/// the outline's, whose corners were seen, unseen itself). Sorted
 /// larger first, a tag's paper outline comes before its own data square,
 /// and the outline's reading (its sides measured, its grid sampled, every
 /// reading tried on it and then on its middle half) is the dearer and the
