@@ -144,6 +144,70 @@ fn bilinear_inside<'a>(img: &GrayView<'a>) -> impl Fn(f64, f64) -> f64 + 'a {
     }
 }
 
+/// Bilinear samples of `img` at the pixel-centre point `(x, y)` and one
+/// pixel either side of it along each axis, `[centre, left, right, up,
+/// down]`, the values [`sample_bilinear`] gives there; `None` unless all
+/// five lie in the image (for which the four outer ones suffice).
+///
+/// Why not five calls: the print alignment's Gauss-Newton steps take an
+/// image gradient at every template point, and those samples were a tenth
+/// of a cluttered frame's time, most of it spent locating and
+/// bounds-testing each sample's pixels. Here the pixels are read once, as
+/// the 4 x 4 block around the centre, and the five samples are
+/// interpolated from it with the centre's offsets within its pixel, after
+/// checking that those are the offsets [`sample_bilinear`] computes for
+/// each shifted point, so that the values are the same to the last bit.
+/// Where they are not (a shifted coordinate rounded), and where the block
+/// would reach past the image, the five points are sampled one by one.
+pub(crate) fn bilinear_cross(img: &GrayView<'_>, x: f64, y: f64) -> Option<[f64; 5]> {
+    let shifted = [
+        [x, y],
+        [x - 1.0, y],
+        [x + 1.0, y],
+        [x, y - 1.0],
+        [x, y + 1.0],
+    ];
+    if !shifted[1..].iter().all(|&p| inside_image(img, p)) {
+        return None;
+    }
+    let (w, h) = (img.width(), img.height());
+    // 1 <= x <= w - 2 here (and so for y), so truncation is floor and the
+    // block, from the pixel before the centre's, starts in the image. It
+    // ends past the image only where x (or y) is its largest, w - 2, a
+    // point left to the plain sampler.
+    let (bx, by) = (x as u32 - 1, y as u32 - 1);
+    if bx + 3 >= w || by + 3 >= h {
+        return Some(shifted.map(|p| bilinear_inside(img)(p[0], p[1])));
+    }
+    let (stride, raw) = (img.stride(), img.data());
+    let mut block = [[0.0; 4]; 4];
+    for (r, out) in block.iter_mut().enumerate() {
+        let at = (by as usize + r) * stride + bx as usize;
+        let pixels: &[u8; 4] = raw.get(at..at + 4)?.try_into().ok()?;
+        *out = pixels.map(|v| GREY_F64[usize::from(v)]);
+    }
+    // Each sample's offsets within its pixel, as `bilinear_inside`
+    // computes them, are the centre's when its shifted coordinates are
+    // exact (they are but where x + 1 rounds into the next power of two);
+    // otherwise each sample is taken on its own.
+    let (fx, fy) = (x - f64::from(bx + 1), y - f64::from(by + 1));
+    let same = |v: f64, at: u32, f: f64| v - f64::from(at) == f;
+    if !(same(x - 1.0, bx, fx)
+        && same(x + 1.0, bx + 2, fx)
+        && same(y - 1.0, by, fy)
+        && same(y + 1.0, by + 2, fy))
+    {
+        return Some(shifted.map(|p| bilinear_inside(img)(p[0], p[1])));
+    }
+    let (gx, gy) = (1.0 - fx, 1.0 - fy);
+    let at = |r: usize, c: usize| {
+        let top = block[r][c] * gx + block[r][c + 1] * fx;
+        let bot = block[r + 1][c] * gx + block[r + 1][c + 1] * fx;
+        top * gy + bot * fy
+    };
+    Some([at(1, 1), at(1, 0), at(1, 2), at(0, 1), at(2, 1)])
+}
+
 /// Every grey level as an `f64`: a table look-up is cheaper than the
 /// integer-to-float conversion in the bilinear samplers' inner loops (four
 /// per sample), and gives the same values.
@@ -320,6 +384,68 @@ mod tests {
             &mut out
         ));
         assert_eq!(out, [1.0]);
+    }
+
+    #[test]
+    fn samples_a_cross_as_point_by_point() {
+        // A 7 x 5 image with a stride of 9: points inside, on every
+        // border's last admissible value (1 and w - 2, where the 4 x 4
+        // block reaches past the image with a zero weight), just beyond
+        // it, and on the image's own border; 1.9999999999999998, whose
+        // right neighbour rounds to 3.0, a pixel past the block.
+        let data: Vec<u8> = (0..9 * 5).map(|i| (i * 37 % 251) as u8).collect();
+        let v = GrayView::new(&data, 7, 5, 9).unwrap();
+        let xs = [
+            0.0,
+            0.5,
+            1.0,
+            1.3,
+            1.9999999999999998,
+            2.0,
+            3.75,
+            4.9,
+            5.0,
+            5.0001,
+            6.0,
+            7.2,
+        ];
+        let ys = [
+            0.0,
+            0.99,
+            1.0,
+            1.5,
+            1.9999999999999998,
+            2.25,
+            2.9,
+            3.0,
+            3.01,
+            4.0,
+        ];
+        let mut inside = 0;
+        for &x in &xs {
+            for &y in &ys {
+                let one: Option<Vec<f64>> = [
+                    [x, y],
+                    [x - 1.0, y],
+                    [x + 1.0, y],
+                    [x, y - 1.0],
+                    [x, y + 1.0],
+                ]
+                .iter()
+                .map(|p| sample_bilinear(&v, p[0], p[1]))
+                .collect();
+                let cross = bilinear_cross(&v, x, y);
+                assert_eq!(cross.is_some(), one.is_some(), "({x}, {y})");
+                if let (Some(c), Some(one)) = (cross, one) {
+                    inside += 1;
+                    assert_eq!(c.to_vec(), one, "({x}, {y})");
+                }
+            }
+        }
+        assert_eq!(inside, 7 * 6);
+        // Too small for any cross.
+        let tiny = GrayView::new(&data, 2, 2, 9).unwrap();
+        assert_eq!(bilinear_cross(&tiny, 0.5, 0.5), None);
     }
 
     #[test]

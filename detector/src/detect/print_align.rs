@@ -28,7 +28,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::family::Family;
 use crate::geometry::{tag_shapes, Element, Paint, Part, Shape, B, R};
-use crate::math::sample_bilinear;
+use crate::math::{bilinear_cross, sample_bilinear};
 use crate::view::GrayView;
 
 /// Half the side of the grid of template points in the tag's plane (units
@@ -350,15 +350,18 @@ fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
     // them as unknowns too.
     let mut samples = Vec::with_capacity(pts.len());
     let (mut n, mut st, mut si, mut stt, mut sti) = (0usize, 0.0, 0.0, 0.0, 0.0);
-    for (p, tv, q, iv) in on_image(img, h, level) {
-        let (Some(xl), Some(xr), Some(yu), Some(yd)) = (
-            sample_bilinear(img, q[0] - 1.0, q[1]),
-            sample_bilinear(img, q[0] + 1.0, q[1]),
-            sample_bilinear(img, q[0], q[1] - 1.0),
-            sample_bilinear(img, q[0], q[1] + 1.0),
-        ) else {
+    // The points `on_image` gives whose gradient samples, a pixel either
+    // side, lie in the image too.
+    for (&p, &tv) in pts.iter().zip(&level.values) {
+        let Some(q) = map(h, p) else {
             continue;
         };
+        let Some([iv, xl, xr, yu, yd]) = bilinear_cross(img, q[0], q[1]) else {
+            continue;
+        };
+        if iv >= SATURATED {
+            continue;
+        }
         samples.push((p, tv, q, iv, [(xr - xl) / 2.0, (yd - yu) / 2.0]));
         n += 1;
         st += tv;
