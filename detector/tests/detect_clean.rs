@@ -58,6 +58,21 @@ fn a_clean_tag_is_decoded_once() {
     }
 }
 
+/// A ct14-only detector on a clean frame of a ct8 tag: the tag's data
+/// square shows ct8's cells, so it is that tag, and neither its printed
+/// outline, nor its disc rim, nor a small-tag look around it is read
+/// again; nothing is found.
+#[test]
+fn another_familys_tag_is_decoded_once() {
+    let mut det = Detector::new(DetectorConfig::with_builtin_families(&["ct14"]).unwrap()).unwrap();
+    for d in [1.0, 2.8] {
+        let s = paper_scene(Family::ct8(), 42, d, &rotation(0.35, -0.25, 0.6));
+        let found = det.detect(&s.render());
+        assert!(found.is_empty(), "d={d}: {found:?}");
+        assert_eq!(det.stats().decode_attempts, 1, "d={d}: {:?}", det.stats());
+    }
+}
+
 fn sweep(step: usize) -> Vec<(String, Scene)> {
     let fam = Family::ct14();
     let mut v = Vec::new();

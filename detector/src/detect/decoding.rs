@@ -107,8 +107,9 @@ impl Found {
 /// Refines and decodes `candidates` (best first, working-image coordinates
 /// scaled by `scale`) on the full-resolution `img`. Candidates whose centre
 /// falls inside a tag already read cleanly are skipped, and so are those
-/// [`plainly_not_a_tag`] refuses. Returns the tags found and the number of
-/// candidates decoded.
+/// [`plainly_not_a_tag`] refuses and those inside a square of a family
+/// not decoded ([`Decoded::foreign`]). Returns the tags found, those
+/// squares and the number of candidates decoded.
 pub(crate) fn decode_candidates(
     img: &GrayView<'_>,
     candidates: &[Candidate],
@@ -116,23 +117,58 @@ pub(crate) fn decode_candidates(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> (Vec<Found>, usize) {
+) -> Decoded {
     decode_in_order(
         candidates,
         scale,
         p,
         |j, centre| outcome(img, &candidates[j], scale, centre, targets, p, scratch),
-        |_, _| {},
+        |_, _, _| {},
     )
 }
 
 /// What decoding a candidate came to: refused by [`plainly_not_a_tag`]
-/// before any reading, or read (perhaps to nothing; boxed, as a reading
-/// is large and most candidates read to nothing).
+/// before any reading, read (perhaps to nothing; boxed, as a reading is
+/// large and most candidates read to nothing), or found to be the data
+/// square of a built-in family that is not decoded (its refined corners:
+/// see [`Decoded::foreign`]).
 #[derive(Debug)]
 pub(super) enum Outcome {
     Refused,
     Read(Option<Box<Reading>>),
+    Foreign(Box<Quad>),
+}
+
+/// A quad's corners (full-resolution px).
+pub(super) type Quad = [[f64; 2]; 4];
+
+/// What the decoding loop came to ([`decode_candidates`]).
+#[derive(Debug, Default)]
+pub(crate) struct Decoded {
+    /// The tags found.
+    pub found: Vec<Found>,
+    /// The data squares of tags of a built-in family that is not decoded
+    /// (the cells' pitch shows that family's grid and no target's, see
+    /// [`shown_grid`]), not inside a tag found: quads with four seen
+    /// corners, and prints the rim look aligned. The candidates inside
+    /// one are that tag's other quads (its outline, pieces of it), and a
+    /// later look at its rim or around it could only find the same square
+    /// again; skipping them took a third of the time of a ct14-only
+    /// detector on the wild benchmark's 1080p frames, where the ct8 tags
+    /// had cost as much as the ct14 ones. Why four seen corners: quads
+    /// with estimated corners through clutter, 23 to 139 px, showed ct8's
+    /// grid on 6 of the 3000 wild frames (phases 0.12-0.23), around ct14
+    /// tags, 4 of which were then lost.
+    pub foreign: Vec<Quad>,
+    /// The candidates decoded.
+    pub attempts: usize,
+}
+
+/// What one candidate's reading came to ([`attempt`]).
+enum Attempt {
+    Read(Option<Reading>),
+    /// The square shows the grid of a family that no target is.
+    Foreign(Quad),
 }
 
 /// The [`Outcome`] of candidate `cand` (centroid `centre`): a pure
@@ -147,9 +183,11 @@ pub(super) fn outcome(
     scratch: &mut RefineScratch,
 ) -> Outcome {
     if plainly_not_a_tag(img, cand, scale, finest_grid(&p.refine)) {
-        Outcome::Refused
-    } else {
-        Outcome::Read(attempt(img, cand, scale, centre, targets, p, scratch).map(Box::new))
+        return Outcome::Refused;
+    }
+    match attempt(img, cand, scale, centre, targets, p, scratch) {
+        Attempt::Read(r) => Outcome::Read(r.map(Box::new)),
+        Attempt::Foreign(q) => Outcome::Foreign(Box::new(q)),
     }
 }
 
@@ -162,7 +200,7 @@ fn attempt(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> Option<Reading> {
+) -> Attempt {
     if let Some(seen) = cand.rim {
         return rim_attempt(img, cand, &seen, scale, centre, targets, p, scratch);
     }
@@ -171,9 +209,14 @@ fn attempt(
     // A square showing another family's cells is that family's data
     // square, not a tag's outline around a blurred one either (the
     // outline's interior shows the cells at 0.8 of the square's scale,
-    // off every family's period).
+    // off every family's period). Its candidate is that tag's when all
+    // four corners were seen (see `Decoded::foreign`).
     if none_can_read(shown, targets) {
-        return None;
+        return if cand.real == 4 {
+            Attempt::Foreign(q)
+        } else {
+            Attempt::Read(None)
+        };
     }
     let own = read(img, cand, &q, centre, targets, &p.decode, shown)
         .filter(|d| {
@@ -181,38 +224,41 @@ fn attempt(
                 || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
         })
         .and_then(|d| unless_faint(img, d, targets, p));
-    own.map(|det| Reading {
-        det,
-        outline: false,
-    })
-    .or_else(|| {
-        // The quad may be the printed tag's outline around a data square
-        // too blurred to make a quad of its own.
-        // Near the code's limit its reading must have every corner borne
-        // out by the fit of the tag's model: the square is the outline's
-        // middle half, not a quad of its own edges (on the wild set, one
-        // at ct14's limit had an occluded corner 3.7 px off).
-        let inner = data_square_within(img, &q)?;
-        read(
-            img,
-            cand,
-            &inner,
-            centre,
-            targets,
-            &p.decode,
-            shown_grid(img, &inner),
-        )
-        .filter(|d| {
-            if d.occluded {
-                target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-            } else {
-                d.likelihood
-                    || target_of(targets, d).is_some_and(|t| outline_reading_stands(img, d, t, p))
-            }
+    let reading = own
+        .map(|det| Reading {
+            det,
+            outline: false,
         })
-        .and_then(|d| unless_faint(img, d, targets, p))
-        .map(|det| Reading { det, outline: true })
-    })
+        .or_else(|| {
+            // The quad may be the printed tag's outline around a data square
+            // too blurred to make a quad of its own.
+            // Near the code's limit its reading must have every corner borne
+            // out by the fit of the tag's model: the square is the outline's
+            // middle half, not a quad of its own edges (on the wild set, one
+            // at ct14's limit had an occluded corner 3.7 px off).
+            let inner = data_square_within(img, &q)?;
+            read(
+                img,
+                cand,
+                &inner,
+                centre,
+                targets,
+                &p.decode,
+                shown_grid(img, &inner),
+            )
+            .filter(|d| {
+                if d.occluded {
+                    target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+                } else {
+                    d.likelihood
+                        || target_of(targets, d)
+                            .is_some_and(|t| outline_reading_stands(img, d, t, p))
+                }
+            })
+            .and_then(|d| unless_faint(img, d, targets, p))
+            .map(|det| Reading { det, outline: true })
+        });
+    Attempt::Read(reading)
 }
 
 /// Small moves of the aligned print's square that the rim look reads the
@@ -260,7 +306,7 @@ fn rim_attempt(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> Option<Reading> {
+) -> Attempt {
     // The reading of the cells at `q`, if it stands; `aligned`, the
     // aligned print's corners it reports (none: the fit's); `shown`, the
     // grid the square shows (`pitch::shown_grid`).
@@ -292,10 +338,10 @@ fn rim_attempt(
     let aligned = seen.aligned(img).map(|q| (q, shown_grid(img, &q)));
     // A print aligned as another family's tag is not refined and read
     // again: the refined quad is the same square.
-    if aligned.is_some_and(|(_, shown)| none_can_read(shown, targets)) {
-        return None;
+    if let Some((q, _)) = aligned.filter(|&(_, shown)| none_can_read(shown, targets)) {
+        return Attempt::Foreign(q);
     }
-    aligned
+    let reading = aligned
         .and_then(|(q, shown)| {
             on(&q, Some(&q), true, shown).or_else(|| {
                 (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
@@ -310,7 +356,8 @@ fn rim_attempt(
         .map(|det| Reading {
             det,
             outline: false,
-        })
+        });
+    Attempt::Read(reading)
 }
 
 /// Whether the grid a square shows (`shown`, [`shown_grid`]) rules out
@@ -681,18 +728,23 @@ pub(super) enum Plan {
 }
 
 /// Whether a candidate with centroid `centre` (and `scale`, the working
-/// image's) is decoded given the tags `found` so far, and as what.
+/// image's) is decoded given the tags `found` and the squares `foreign`
+/// (see [`Decoded::foreign`]) so far, and as what.
 pub(super) fn plan(
     cand: &Candidate,
     centre: [f64; 2],
     scale: f64,
     found: &[Found],
+    foreign: &[Quad],
     p: &DecodingParams,
 ) -> Plan {
     let Some(r) = found
         .iter()
         .position(|f| inside(&f.reading.det.corners, centre))
     else {
+        if foreign.iter().any(|q| inside(q, centre)) {
+            return Plan::Skip;
+        }
         return Plan::Decode(None);
     };
     // A linked candidate (see `quads`) over a tag already read is
@@ -720,24 +772,25 @@ pub(super) fn plan(
 /// The sequential decoding loop: each candidate in turn skipped
 /// ([`plan`]) or decoded, the [`Outcome`] of candidate `j` (centroid
 /// `centre`) from `outcome`; a refused rival counts as one that did not
-/// read. `taken(j, found)` sees the tags found so far after each outcome
-/// was taken into them. Returns the tags and the number of candidates
-/// read.
+/// read. `taken(j, found, foreign)` sees the tags and the squares of
+/// families not decoded found so far after each outcome was taken into
+/// them.
 pub(super) fn decode_in_order(
     candidates: &[Candidate],
     scale: f64,
     p: &DecodingParams,
     mut outcome: impl FnMut(usize, [f64; 2]) -> Outcome,
-    mut taken: impl FnMut(usize, &[Found]),
-) -> (Vec<Found>, usize) {
+    mut taken: impl FnMut(usize, &[Found], &[Quad]),
+) -> Decoded {
     let mut found: Vec<Found> = Vec::new();
+    let mut foreign: Vec<Quad> = Vec::new();
     let mut attempts = 0;
     for (j, cand) in candidates.iter().enumerate() {
         if attempts >= p.max_attempts {
             break;
         }
         let centre = centre_of(cand, scale);
-        let (rival, outcome) = match plan(cand, centre, scale, &found, p) {
+        let (rival, outcome) = match plan(cand, centre, scale, &found, &foreign, p) {
             Plan::Skip => continue,
             // Dismissed unread, as if refused.
             Plan::Dismiss(r) => (Some(r), Outcome::Refused),
@@ -751,10 +804,23 @@ pub(super) fn decode_in_order(
                 attempts += 1;
                 take_reading(&mut found, rival, best.map(|b| *b));
             }
+            // A rival showing another family's grid read nothing.
+            (Some(r), Outcome::Foreign(_)) => {
+                attempts += 1;
+                found[r].rivals += 1;
+            }
+            (None, Outcome::Foreign(q)) => {
+                attempts += 1;
+                foreign.push(*q);
+            }
         }
-        taken(j, &found);
+        taken(j, &found, &foreign);
     }
-    (found, attempts)
+    Decoded {
+        found,
+        foreign,
+        attempts,
+    }
 }
 
 /// Takes a candidate's reading `best` into the tags `found`: a rival of
@@ -1189,7 +1255,7 @@ mod tests {
         let tag = [found(square([500.0, 400.0], 270.0), 5)];
         let plan_of = |corners, scale| {
             let c = candidate(corners, scale);
-            plan(&c, centre_of(&c, scale), scale, &tag, &p)
+            plan(&c, centre_of(&c, scale), scale, &tag, &[], &p)
         };
         for scale in [1.0, 2.0] {
             // A cell (a sixteenth of the side) and the centre checker (a
@@ -1223,12 +1289,45 @@ mod tests {
         // A tag read cleanly has no rivals at all, small or not.
         let clean = [found(square([500.0, 400.0], 270.0), 0)];
         let c = candidate(square([540.0, 430.0], 17.0), 1.0);
-        assert_eq!(plan(&c, centre_of(&c, 1.0), 1.0, &clean, &p), Plan::Skip);
+        assert_eq!(
+            plan(&c, centre_of(&c, 1.0), 1.0, &clean, &[], &p),
+            Plan::Skip
+        );
         // A dismissed rival counts against the tag's rivals: once they are
         // used up, the next one is skipped.
         let mut used = [found(square([500.0, 400.0], 270.0), 5)];
         used[0].rivals = MAX_RIVALS;
         let c = candidate(square([540.0, 430.0], 17.0), 1.0);
-        assert_eq!(plan(&c, centre_of(&c, 1.0), 1.0, &used, &p), Plan::Skip);
+        assert_eq!(
+            plan(&c, centre_of(&c, 1.0), 1.0, &used, &[], &p),
+            Plan::Skip
+        );
+    }
+
+    #[test]
+    fn candidates_over_another_familys_square_are_skipped() {
+        let p = params();
+        let foreign = [square([500.0, 400.0], 100.0)];
+        // The square's outline and a piece of it: skipped.
+        for corners in [square([500.0, 400.0], 200.0), square([480.0, 420.0], 40.0)] {
+            let c = candidate(corners, 1.0);
+            assert_eq!(
+                plan(&c, centre_of(&c, 1.0), 1.0, &[], &foreign, &p),
+                Plan::Skip
+            );
+        }
+        // Beside it: a candidate as any other.
+        let c = candidate(square([700.0, 400.0], 100.0), 1.0);
+        assert_eq!(
+            plan(&c, centre_of(&c, 1.0), 1.0, &[], &foreign, &p),
+            Plan::Decode(None)
+        );
+        // Inside a tag found, a rival as before.
+        let tag = [found(square([500.0, 400.0], 270.0), 5)];
+        let c = candidate(square([500.0, 400.0], 200.0), 1.0);
+        assert_eq!(
+            plan(&c, centre_of(&c, 1.0), 1.0, &tag, &foreign, &p),
+            Plan::Decode(Some(0))
+        );
     }
 }

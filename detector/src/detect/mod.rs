@@ -450,8 +450,10 @@ fn rim_inside<'a>(
 
 /// The rim look: a candidate predicted from each of the disc `rims` of
 /// the main look ([`rim::rim_candidate`], `scale` the main look's) whose
-/// anchor lies in no tag `found` so far, decoded in the rims' order, at
-/// most `budget`. Returns the tags found and the candidates decoded.
+/// anchor lies in no tag `found` so far and in no data square of a family
+/// not decoded (`foreign`, see [`decoding::Decoded::foreign`]), decoded in
+/// the rims' order, at most `budget`. Returns the tags found and the
+/// candidates decoded.
 #[allow(clippy::too_many_arguments)]
 fn rim_look(
     img: &GrayView<'_>,
@@ -462,6 +464,7 @@ fn rim_look(
     ws: &mut Workspace,
     rims: &[ellipses::Ellipse],
     found: &[decoding::Found],
+    foreign: &[[[f64; 2]; 4]],
 ) -> (Vec<decoding::Found>, usize) {
     // The smallest data square a rim reading may have (see
     // `decoding::RIM_MIN_CELL_PX`), less the rim's own uncertainty: a
@@ -479,6 +482,7 @@ fn rim_look(
     cands.extend(
         rims.iter()
             .filter(|e| !rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
+            .filter(|e| !rim_inside(e, scale, foreign.iter()))
             .filter(|e| {
                 // Every side of the square the rim predicts lies between
                 // its two axes over the rim's radius.
@@ -493,7 +497,7 @@ fn rim_look(
     };
     let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
     ws.rim_cands = cands;
-    out
+    (out.found, out.attempts)
 }
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
@@ -540,20 +544,22 @@ fn threshold_bands(
 /// that read nothing, the same on the region upsampled 2x; where still
 /// nothing read, the full-resolution look's guessed candidates (see
 /// `quads::one_corner`), kept back so that they neither count against the
-/// upsampled look nor come before it. Returns the tags found and the
-/// candidates decoded.
+/// upsampled look nor come before it. A rim whose square shows a family
+/// not decoded ([`decoding::Decoded::foreign`]) is that family's tag, and
+/// is not looked at further. Returns what the looks decoded.
 fn small_region(
     img: &GrayView<'_>,
     r: &small::Region,
     d: &SmallPass<'_>,
     budget: usize,
     ws: &mut Workspace,
-) -> (Vec<decoding::Found>, usize) {
+) -> decoding::Decoded {
     let view = img.crop(r.x0, r.y0, r.w, r.h);
-    let (found, n) = small_look(img, &view, r, 1.0, d, budget, ws);
-    if !found.is_empty() {
-        return (found, n);
+    let first = small_look(img, &view, r, 1.0, d, budget, ws);
+    if !first.found.is_empty() || !first.foreign.is_empty() {
+        return first;
     }
+    let n = first.attempts;
     // The guessed candidates are taken before the upsampled look reuses
     // the segmentation's buffers.
     let mut guessed = std::mem::take(&mut ws.guessed);
@@ -565,19 +571,26 @@ fn small_region(
             .filter(|c| c.guessed)
             .filter_map(|c| small::of_rim(c, r, 1.0)),
     );
-    let (mut found, mut n) = small_upsampled(img, r, d, budget, n, ws);
-    if found.is_empty() && n < budget && !guessed.is_empty() {
-        let (more, m) = decode_small(img, &guessed, d, budget - n, ws);
-        found = more;
-        n += m;
+    let mut out = small_upsampled(img, r, d, budget, n, ws);
+    if out.found.is_empty()
+        && out.foreign.is_empty()
+        && out.attempts < budget
+        && !guessed.is_empty()
+    {
+        let more = decode_small(img, &guessed, d, budget - out.attempts, ws);
+        out = decoding::Decoded {
+            attempts: out.attempts + more.attempts,
+            ..more
+        };
     }
     ws.guessed = guessed;
-    (found, n)
+    out
 }
 
 /// The upsampled look of [`small_region`] after a full-resolution look
 /// that read nothing in `n` candidates decoded, where the rim is small and
-/// patterned enough for it; `n` plus the candidates it decoded.
+/// patterned enough for it: what it decoded, its attempts counting the
+/// `n` before it.
 fn small_upsampled(
     img: &GrayView<'_>,
     r: &small::Region,
@@ -585,24 +598,29 @@ fn small_upsampled(
     budget: usize,
     n: usize,
     ws: &mut Workspace,
-) -> (Vec<decoding::Found>, usize) {
+) -> decoding::Decoded {
+    let none = decoding::Decoded {
+        attempts: n,
+        ..Default::default()
+    };
     if n >= budget || n > small::MAX_PLAIN_READS_TO_UPSAMPLE || !small::worth_upsampling(img, r) {
-        return (Vec::new(), n);
+        return none;
     }
     let Some(t) = r.tight() else {
-        return (Vec::new(), n);
+        return none;
     };
     // Nothing read at full resolution: once more upsampled 2x (see
     // `small::UPSAMPLE_BELOW_SIDE_PX`).
     let (mut rows, mut up) = (std::mem::take(&mut ws.up_rows), std::mem::take(&mut ws.up));
     let (w2, h2) = small::upsample_2x(&img.crop(t.x0, t.y0, t.w, t.h), &mut rows, &mut up);
     let zoomed = GrayView::packed(&up, w2 as usize, h2 as usize);
-    let (mut found, m) = small_look(img, &zoomed, &t, 2.0, d, budget - n, ws);
-    for f in &mut found {
+    let mut out = small_look(img, &zoomed, &t, 2.0, d, budget - n, ws);
+    for f in &mut out.found {
         f.mark_upsampled();
     }
     (ws.up_rows, ws.up) = (rows, up);
-    (found, n + m)
+    out.attempts += n;
+    out
 }
 
 /// Stages 1-5 on `view` (region `r` of `img`, at `zoom` times its
@@ -617,7 +635,7 @@ fn small_look(
     d: &SmallPass<'_>,
     budget: usize,
     ws: &mut Workspace,
-) -> (Vec<decoding::Found>, usize) {
+) -> decoding::Decoded {
     // The regions' own stage times are not split out: they are the
     // `small` stage.
     let mut inner = StageTimes::default();
@@ -640,7 +658,7 @@ fn decode_small(
     d: &SmallPass<'_>,
     budget: usize,
     ws: &mut Workspace,
-) -> (Vec<decoding::Found>, usize) {
+) -> decoding::Decoded {
     decoding::decode_candidates(
         img,
         candidates,
@@ -822,7 +840,11 @@ impl Detector {
         );
         laps.lap();
         let cands = &ws.seg.candidates;
-        let (mut found, mut attempts) = match workers {
+        let decoding::Decoded {
+            mut found,
+            mut foreign,
+            mut attempts,
+        } = match workers {
             None => decoding::decode_candidates(
                 &img,
                 cands,
@@ -851,7 +873,14 @@ impl Detector {
         ws.rims.extend_from_slice(&ws.seg.ellipses);
         if self.config.small_tags && scale > 1.0 {
             let seen: Vec<&Detection> = found.iter().map(|f| f.detection()).collect();
-            let regions = small::regions(&ws.seg.ellipses, scale, &seen, img.width(), img.height());
+            let regions = small::regions(
+                &ws.seg.ellipses,
+                scale,
+                &seen,
+                &foreign,
+                img.width(),
+                img.height(),
+            );
             st.small_regions = regions.len();
             let this = &SmallPass {
                 full: &self.full_params,
@@ -862,9 +891,10 @@ impl Detector {
                 None => {
                     for r in &regions {
                         let budget = p.decoding.max_attempts.saturating_sub(attempts);
-                        let (more, n) = small_region(&img, r, this, budget, ws);
-                        attempts += n;
-                        found.extend(more);
+                        let more = small_region(&img, r, this, budget, ws);
+                        attempts += more.attempts;
+                        found.extend(more.found);
+                        foreign.extend(more.foreign);
                     }
                 }
                 Some(w) => {
@@ -889,15 +919,16 @@ impl Detector {
                         )
                     });
                     ahead = fits;
-                    for (r, (more, n)) in regions.iter().zip(runs) {
+                    for (r, run) in regions.iter().zip(runs) {
                         let budget = p.decoding.max_attempts.saturating_sub(attempts);
-                        let (more, n) = if n <= budget {
-                            (more, n)
+                        let more = if run.attempts <= budget {
+                            run
                         } else {
                             small_region(&img, r, this, budget, ws)
                         };
-                        attempts += n;
-                        found.extend(more);
+                        attempts += more.attempts;
+                        found.extend(more.found);
+                        foreign.extend(more.foreign);
                     }
                 }
             }
@@ -921,6 +952,7 @@ impl Detector {
                 ws,
                 rims,
                 found,
+                &foreign,
             );
             *attempts += n;
             more

@@ -27,7 +27,8 @@
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
 use super::decoding::{
-    centre_of, decode_in_order, outcome, plan, DecodingParams, Found, Outcome, Plan, Target,
+    centre_of, decode_in_order, outcome, plan, Decoded, DecodingParams, Found, Outcome, Plan, Quad,
+    Target,
 };
 use super::parallel::Workers;
 use super::quads::Candidate;
@@ -75,8 +76,10 @@ struct Ahead {
     most: usize,
     /// Whether the loop is reading a candidate itself.
     busy: bool,
-    /// The tags the loop has found so far, for skipping candidates ahead.
+    /// The tags the loop has found so far, and the squares of families not
+    /// decoded, for skipping candidates ahead.
     found: Vec<Found>,
+    foreign: Vec<Quad>,
     /// The loop has finished: threads stop reading ahead.
     finished: bool,
 }
@@ -85,7 +88,7 @@ impl Ahead {
     /// The next candidate to read ahead, if one is left that the tags
     /// found so far would not skip, the limit allows one and the loop is
     /// not about to take a ready outcome; it is marked taken.
-    fn take(&mut self, wanted: impl Fn(usize, &[Found]) -> bool) -> Option<usize> {
+    fn take(&mut self, wanted: impl Fn(usize, &[Found], &[Quad]) -> bool) -> Option<usize> {
         if !self.busy && matches!(self.slots.get(self.at), Some(Slot::Done(_))) {
             return None;
         }
@@ -100,7 +103,7 @@ impl Ahead {
         while self.next < self.slots.len() {
             let k = self.next;
             self.next += 1;
-            if matches!(self.slots[k], Slot::Free) && wanted(k, &self.found) {
+            if matches!(self.slots[k], Slot::Free) && wanted(k, &self.found, &self.foreign) {
                 self.slots[k] = Slot::Taken;
                 return Some(k);
             }
@@ -150,7 +153,7 @@ impl Shared {
     /// A worker thread's part: read ahead until the loop has finished.
     fn read_ahead(
         &self,
-        wanted: &impl Fn(usize, &[Found]) -> bool,
+        wanted: &impl Fn(usize, &[Found], &[Quad]) -> bool,
         read: &impl Fn(usize) -> Outcome,
     ) {
         let mut g = self.lock();
@@ -187,7 +190,7 @@ impl Shared {
         &self,
         j: usize,
         left: usize,
-        wanted: &impl Fn(usize, &[Found]) -> bool,
+        wanted: &impl Fn(usize, &[Found], &[Quad]) -> bool,
         read: &impl Fn(usize) -> Outcome,
     ) -> Outcome {
         let mut g = self.lock();
@@ -229,15 +232,18 @@ impl Shared {
     }
 
     /// The loop has taken the outcome of candidate `j` into the tags it
-    /// has found, `found`: the threads may read ahead past it, skipping
-    /// the candidates those tags make the loop skip.
-    fn taken(&self, j: usize, found: &[Found]) {
+    /// has found, `found`, and the squares of families not decoded,
+    /// `foreign`: the threads may read ahead past it, skipping the
+    /// candidates those make the loop skip.
+    fn taken(&self, j: usize, found: &[Found], foreign: &[Quad]) {
         let mut g = self.lock();
         // The loop read it itself or took its outcome out.
         g.slots[j] = Slot::Free;
         g.at = j + 1;
         g.found.clear();
         g.found.extend_from_slice(found);
+        g.foreign.clear();
+        g.foreign.extend_from_slice(foreign);
         self.changed.notify_all();
     }
 
@@ -259,17 +265,17 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
     p: &DecodingParams,
     workers: &Workers<W>,
     scratch: impl Fn(&mut W) -> &mut RefineScratch + Sync,
-) -> (Vec<Found>, usize) {
+) -> Decoded {
     let centres: Vec<[f64; 2]> = candidates.iter().map(|c| centre_of(c, scale)).collect();
     // Guessed candidates (`quads::one_corner`) are left to the loop: they
     // come last, and most of them lie over tags the candidates before them
     // find, so read ahead they would be read in vain and waited for at the
     // end of the frame (on the wild 1080p benchmark, decoding with 2
     // threads took 4.58 ms instead of 3.99).
-    let wanted = |k: usize, found: &[Found]| {
+    let wanted = |k: usize, found: &[Found], foreign: &[Quad]| {
         !candidates[k].guessed
             && matches!(
-                plan(&candidates[k], centres[k], scale, found, p),
+                plan(&candidates[k], centres[k], scale, found, foreign, p),
                 Plan::Decode(_)
             )
     };
@@ -299,6 +305,7 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
             most,
             busy: false,
             found: Vec::new(),
+            foreign: Vec::new(),
             finished: false,
         }),
         changed: Condvar::new(),
@@ -328,7 +335,7 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
                     attempts += usize::from(matches!(o, Outcome::Read(_)));
                     o
                 },
-                |j, found| shared.taken(j, found),
+                |j, found, foreign| shared.taken(j, found, foreign),
             )
         })
     })

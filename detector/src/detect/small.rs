@@ -26,6 +26,8 @@
 use super::ellipses::Ellipse;
 use super::quads::Candidate;
 use super::Detection;
+use crate::geometry::CORNERS;
+use crate::homography::Homography;
 use crate::math::{centroid, inside, to_full};
 use crate::view::GrayView;
 
@@ -153,13 +155,16 @@ impl Region {
 
 /// The regions to segment again: one square per rim (`ellipses`, in
 /// working px at `scale`) of a small tag's size whose centre lies on no
-/// printed tag of `found`, clipped to the `width` x `height` image, in the
+/// printed tag of `found` nor of a data square of a family not decoded
+/// (`foreign`, see [`super::decoding::Decoded::foreign`]: the rim is that
+/// tag's), clipped to the `width` x `height` image, in the
 /// order the rims came, without regions inside an earlier one, at most
 /// [`MAX_REGIONS`].
 pub(crate) fn regions(
     ellipses: &[Ellipse],
     scale: f64,
     found: &[&Detection],
+    foreign: &[[[f64; 2]; 4]],
     width: u32,
     height: u32,
 ) -> Vec<Region> {
@@ -174,7 +179,9 @@ pub(crate) fn regions(
             continue;
         }
         let c = to_full(e.centre, scale);
-        if found.iter().any(|d| inside(&printed_square(d), c)) {
+        if found.iter().any(|d| inside(&printed_square(d), c))
+            || foreign.iter().any(|q| inside(&printed_square_of(q), c))
+        {
             continue;
         }
         let half = REGION_PER_AXIS * a + REGION_MARGIN_PX;
@@ -224,6 +231,22 @@ const OWN_RIM_REACH: f64 = 1.3;
 
 /// The square around `d` in which rims are its own ([`OWN_RIM_REACH`]),
 /// or its data square if the homography cannot map it.
+/// [`printed_square`] of a data square with corners `q` (TL, BL, BR, TR
+/// in some turn; the printed square does not depend on the turn).
+fn printed_square_of(q: &[[f64; 2]; 4]) -> [[f64; 2]; 4] {
+    let r = OWN_RIM_REACH;
+    Homography::from_points(&CORNERS, q)
+        .and_then(|h| {
+            Some([
+                h.map([-r, -r])?,
+                h.map([-r, r])?,
+                h.map([r, r])?,
+                h.map([r, -r])?,
+            ])
+        })
+        .unwrap_or(*q)
+}
+
 fn printed_square(d: &Detection) -> [[f64; 2]; 4] {
     let map = |p: [f64; 2]| d.homography.map(p);
     let r = OWN_RIM_REACH;
@@ -363,25 +386,31 @@ mod tests {
             rim([100.0, 60.0], 40.0),
             rim([2.0, 3.0], 8.0),
         ];
-        let r = regions(&rims, 2.0, &[], 320, 240);
+        let r = regions(&rims, 2.0, &[], &[], 320, 240);
         assert_eq!(r.len(), 2, "{r:?}");
         // Centre (40.5, 40.5) full px, half-side 1.5 x 20 + 6 = 36.
         assert_eq!((r[0].x0, r[0].y0, r[0].w, r[0].h), (4, 4, 74, 74));
         // Clipped at the image's top-left.
         assert_eq!((r[1].x0, r[1].y0), (0, 0));
         assert!(r.iter().all(|q| q.x0 + q.w <= 320 && q.y0 + q.h <= 240));
+        // A data square of a family not decoded (24 px, about the first
+        // rim's) takes its rim's region away, and only its.
+        let q = [[28.5, 28.5], [28.5, 52.5], [52.5, 52.5], [52.5, 28.5]];
+        let r = regions(&rims, 2.0, &[], &[q], 320, 240);
+        assert_eq!(r.len(), 1, "{r:?}");
+        assert_eq!((r[0].x0, r[0].y0), (0, 0));
     }
 
     #[test]
     fn the_upsampled_part_stays_in_its_region_or_is_none() {
-        let r = regions(&[rim([20.0, 20.0], 10.0)], 2.0, &[], 320, 240)[0];
+        let r = regions(&[rim([20.0, 20.0], 10.0)], 2.0, &[], &[], 320, 240)[0];
         // Centre (40.5, 40.5), axis 20: half-side 1.15 x 20 + 5 = 28.
         let t = r.tight().unwrap();
         assert_eq!((t.x0, t.y0, t.w, t.h), (12, 12, 58, 58));
         assert!(r.contains(&t));
         // A rim centred off the image's left edge: its region holds only
         // the first columns, and the tighter square none of them.
-        let off = regions(&[rim([-16.0, 50.0], 10.0)], 2.0, &[], 320, 240);
+        let off = regions(&[rim([-16.0, 50.0], 10.0)], 2.0, &[], &[], 320, 240);
         assert_eq!((off[0].x0, off[0].w), (0, 6), "{off:?}");
         assert!(off[0].tight().is_none());
     }
@@ -447,7 +476,7 @@ mod tests {
     #[test]
     fn a_region_inside_another_is_dropped() {
         let rims = [rim([50.0, 50.0], 20.0), rim([50.5, 50.0], 10.0)];
-        assert_eq!(regions(&rims, 2.0, &[], 640, 480).len(), 1);
+        assert_eq!(regions(&rims, 2.0, &[], &[], 640, 480).len(), 1);
     }
 
     #[test]
@@ -463,6 +492,6 @@ mod tests {
                 )
             })
             .collect();
-        assert_eq!(regions(&rims, 2.0, &[], 1280, 960).len(), MAX_REGIONS);
+        assert_eq!(regions(&rims, 2.0, &[], &[], 1280, 960).len(), MAX_REGIONS);
     }
 }
