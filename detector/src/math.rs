@@ -170,6 +170,7 @@ pub(crate) fn bilinear_cross(img: &GrayView<'_>, x: f64, y: f64) -> Option<[f64;
     if !shifted[1..].iter().all(|&p| inside_image(img, p)) {
         return None;
     }
+    let one_by_one = || Some(shifted.map(|p| bilinear_inside(img)(p[0], p[1])));
     let (w, h) = (img.width(), img.height());
     // 1 <= x <= w - 2 here (and so for y), so truncation is floor and the
     // block, from the pixel before the centre's, starts in the image. It
@@ -177,7 +178,7 @@ pub(crate) fn bilinear_cross(img: &GrayView<'_>, x: f64, y: f64) -> Option<[f64;
     // point left to the plain sampler.
     let (bx, by) = (x as u32 - 1, y as u32 - 1);
     if bx + 3 >= w || by + 3 >= h {
-        return Some(shifted.map(|p| bilinear_inside(img)(p[0], p[1])));
+        return one_by_one();
     }
     let (stride, raw) = (img.stride(), img.data());
     let mut block = [[0.0; 4]; 4];
@@ -197,7 +198,7 @@ pub(crate) fn bilinear_cross(img: &GrayView<'_>, x: f64, y: f64) -> Option<[f64;
         && same(y - 1.0, by, fy)
         && same(y + 1.0, by + 2, fy))
     {
-        return Some(shifted.map(|p| bilinear_inside(img)(p[0], p[1])));
+        return one_by_one();
     }
     let (gx, gy) = (1.0 - fx, 1.0 - fy);
     let at = |r: usize, c: usize| {

@@ -164,13 +164,6 @@ pub(crate) struct Decoded {
     pub attempts: usize,
 }
 
-/// What one candidate's reading came to ([`attempt`]).
-enum Attempt {
-    Read(Option<Reading>),
-    /// The square shows the grid of a family that no target is.
-    Foreign(Quad),
-}
-
 /// The [`Outcome`] of candidate `cand` (centroid `centre`): a pure
 /// function of the image and the candidate.
 pub(super) fn outcome(
@@ -185,10 +178,7 @@ pub(super) fn outcome(
     if plainly_not_a_tag(img, cand, scale, finest_grid(&p.refine)) {
         return Outcome::Refused;
     }
-    match attempt(img, cand, scale, centre, targets, p, scratch) {
-        Attempt::Read(r) => Outcome::Read(r.map(Box::new)),
-        Attempt::Foreign(q) => Outcome::Foreign(Box::new(q)),
-    }
+    attempt(img, cand, scale, centre, targets, p, scratch)
 }
 
 /// The reading of one candidate: its refined corners decoded.
@@ -200,7 +190,7 @@ fn attempt(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> Attempt {
+) -> Outcome {
     if let Some(seen) = cand.rim {
         return rim_attempt(img, cand, &seen, scale, centre, targets, p, scratch);
     }
@@ -213,52 +203,64 @@ fn attempt(
     // four corners were seen (see `Decoded::foreign`).
     if none_can_read(shown, targets) {
         return if cand.real == 4 {
-            Attempt::Foreign(q)
+            Outcome::Foreign(Box::new(q))
         } else {
-            Attempt::Read(None)
+            Outcome::Read(None)
         };
     }
-    let own = read(img, cand, &q, centre, targets, &p.decode, shown)
+    Outcome::Read(quad_reading(img, cand, &q, shown, centre, targets, p).map(Box::new))
+}
+
+/// The reading of candidate `cand`'s refined quad `q`, which shows the grid
+/// `shown` ([`shown_grid`]): of the quad itself, else of the data square
+/// within it, as the printed tag's outline.
+fn quad_reading(
+    img: &GrayView<'_>,
+    cand: &Candidate,
+    q: &Quad,
+    shown: Option<usize>,
+    centre: [f64; 2],
+    targets: &[Target],
+    p: &DecodingParams,
+) -> Option<Reading> {
+    let own = read(img, cand, q, centre, targets, &p.decode, shown)
         .filter(|d| {
             !d.occluded
                 || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
         })
         .and_then(|d| unless_faint(img, d, targets, p));
-    let reading = own
-        .map(|det| Reading {
-            det,
-            outline: false,
+    own.map(|det| Reading {
+        det,
+        outline: false,
+    })
+    .or_else(|| {
+        // The quad may be the printed tag's outline around a data square
+        // too blurred to make a quad of its own.
+        // Near the code's limit its reading must have every corner borne
+        // out by the fit of the tag's model: the square is the outline's
+        // middle half, not a quad of its own edges (on the wild set, one
+        // at ct14's limit had an occluded corner 3.7 px off).
+        let inner = data_square_within(img, q)?;
+        read(
+            img,
+            cand,
+            &inner,
+            centre,
+            targets,
+            &p.decode,
+            shown_grid(img, &inner),
+        )
+        .filter(|d| {
+            if d.occluded {
+                target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+            } else {
+                d.likelihood
+                    || target_of(targets, d).is_some_and(|t| outline_reading_stands(img, d, t, p))
+            }
         })
-        .or_else(|| {
-            // The quad may be the printed tag's outline around a data square
-            // too blurred to make a quad of its own.
-            // Near the code's limit its reading must have every corner borne
-            // out by the fit of the tag's model: the square is the outline's
-            // middle half, not a quad of its own edges (on the wild set, one
-            // at ct14's limit had an occluded corner 3.7 px off).
-            let inner = data_square_within(img, &q)?;
-            read(
-                img,
-                cand,
-                &inner,
-                centre,
-                targets,
-                &p.decode,
-                shown_grid(img, &inner),
-            )
-            .filter(|d| {
-                if d.occluded {
-                    target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-                } else {
-                    d.likelihood
-                        || target_of(targets, d)
-                            .is_some_and(|t| outline_reading_stands(img, d, t, p))
-                }
-            })
-            .and_then(|d| unless_faint(img, d, targets, p))
-            .map(|det| Reading { det, outline: true })
-        });
-    Attempt::Read(reading)
+        .and_then(|d| unless_faint(img, d, targets, p))
+        .map(|det| Reading { det, outline: true })
+    })
 }
 
 /// Small moves of the aligned print's square that the rim look reads the
@@ -306,7 +308,7 @@ fn rim_attempt(
     targets: &[Target],
     p: &DecodingParams,
     scratch: &mut RefineScratch,
-) -> Attempt {
+) -> Outcome {
     // The reading of the cells at `q`, if it stands; `aligned`, the
     // aligned print's corners it reports (none: the fit's); `shown`, the
     // grid the square shows (`pitch::shown_grid`).
@@ -339,7 +341,7 @@ fn rim_attempt(
     // A print aligned as another family's tag is not refined and read
     // again: the refined quad is the same square.
     if let Some((q, _)) = aligned.filter(|&(_, shown)| none_can_read(shown, targets)) {
-        return Attempt::Foreign(q);
+        return Outcome::Foreign(Box::new(q));
     }
     let reading = aligned
         .and_then(|(q, shown)| {
@@ -357,7 +359,7 @@ fn rim_attempt(
             det,
             outline: false,
         });
-    Attempt::Read(reading)
+    Outcome::Read(reading.map(Box::new))
 }
 
 /// Whether the grid a square shows (`shown`, [`shown_grid`]) rules out

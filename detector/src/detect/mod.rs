@@ -464,7 +464,7 @@ fn rim_look(
     ws: &mut Workspace,
     rims: &[ellipses::Ellipse],
     found: &[decoding::Found],
-    foreign: &[[[f64; 2]; 4]],
+    foreign: &[decoding::Quad],
 ) -> (Vec<decoding::Found>, usize) {
     // The smallest data square a rim reading may have (see
     // `decoding::RIM_MIN_CELL_PX`), less the rim's own uncertainty: a

@@ -23,6 +23,7 @@
 //! small" idea; AprilTag 3 instead refines its decimated quads' edges at
 //! full resolution (`refine_edges`), which needs a quad to exist first.
 
+use super::decoding::Quad;
 use super::ellipses::Ellipse;
 use super::quads::Candidate;
 use super::Detection;
@@ -164,7 +165,7 @@ pub(crate) fn regions(
     ellipses: &[Ellipse],
     scale: f64,
     found: &[&Detection],
-    foreign: &[[[f64; 2]; 4]],
+    foreign: &[Quad],
     width: u32,
     height: u32,
 ) -> Vec<Region> {
@@ -231,28 +232,24 @@ const OWN_RIM_REACH: f64 = 1.3;
 
 /// The square around `d` in which rims are its own ([`OWN_RIM_REACH`]),
 /// or its data square if the homography cannot map it.
-/// [`printed_square`] of a data square with corners `q` (TL, BL, BR, TR
-/// in some turn; the printed square does not depend on the turn).
-fn printed_square_of(q: &[[f64; 2]; 4]) -> [[f64; 2]; 4] {
-    let r = OWN_RIM_REACH;
-    Homography::from_points(&CORNERS, q)
-        .and_then(|h| {
-            Some([
-                h.map([-r, -r])?,
-                h.map([-r, r])?,
-                h.map([r, r])?,
-                h.map([r, -r])?,
-            ])
-        })
-        .unwrap_or(*q)
+fn printed_square(d: &Detection) -> Quad {
+    own_rim_square(&d.homography, d.corners)
 }
 
-fn printed_square(d: &Detection) -> [[f64; 2]; 4] {
-    let map = |p: [f64; 2]| d.homography.map(p);
+/// [`printed_square`] of a data square with corners `q` (TL, BL, BR, TR in
+/// some turn; the square does not depend on the turn).
+fn printed_square_of(q: &Quad) -> Quad {
+    Homography::from_points(&CORNERS, q).map_or(*q, |h| own_rim_square(&h, *q))
+}
+
+/// The square of [`OWN_RIM_REACH`] about the data square whose homography
+/// is `h`, or `fallback` where `h` cannot map its corners.
+fn own_rim_square(h: &Homography, fallback: Quad) -> Quad {
+    let map = |p: [f64; 2]| h.map(p);
     let r = OWN_RIM_REACH;
     match (map([-r, -r]), map([-r, r]), map([r, r]), map([r, -r])) {
         (Some(a), Some(b), Some(c), Some(e)) => [a, b, c, e],
-        _ => d.corners,
+        _ => fallback,
     }
 }
 
