@@ -10,8 +10,10 @@ use crate::error::Result;
 use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
 use crate::sigma::{SigmaCoverage, SIGMA_MULTIPLE};
-use crate::wild_scenarios::{scenarios_csv, scenarios_table};
-use crate::wild_summary::{FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_RATE};
+use crate::wild_scenarios::{scenarios_csv, scenarios_table, SHARP_DEFOCUS_PX, SHARP_MOTION_PX};
+use crate::wild_summary::{
+    FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_MARKERS, MIN_DETECTABLE_RATE,
+};
 
 fn display(system: &str) -> String {
     match system {
@@ -266,7 +268,11 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
          Jitter is the median, over scenes rendered several times with fresh sensor noise (at least \
          {JITTER_MIN_RENDERS} renders found), of the spread of the corners (px, RMS over the four), of the \
          translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
-         images. Minimum size: the smallest bin of the marker's side in pixels with at least {:.0}% found. \
+         images. Minimum size: on the markers in plain view (no occluder, no glare spot on the marker, sharp: \
+         defocus under {SHARP_DEFOCUS_PX} px and motion under {SHARP_MOTION_PX} px), the smallest bin of the \
+         marker's side in pixels from which every bin (of at least {MIN_DETECTABLE_MARKERS} of the system's \
+         markers) has at least {:.0}% found; over all markers each bin mixes in occluders, glare and blur up \
+         to the drawn maxima, which have their own rows and curves below. \
          Every system runs with its library's default settings, as in the sets above (a new user's first \
          run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search; \
          CopperTag then looks again at full resolution around disc rims too small to read at half \

@@ -110,6 +110,15 @@ fn heavy_blur(f: &Factors) -> bool {
         || num(f, "motion_blur_px").is_some_and(|m| m >= HEAVY_MOTION_PX)
 }
 
+/// Whether marker `o` is in plain view: no occluder, no glare spot on it,
+/// sharp (defocus under [`SHARP_DEFOCUS_PX`] and motion under
+/// [`SHARP_MOTION_PX`]), whatever its size. The size-and-blur rows' sharp
+/// markers, at every size; the minimum detectable size is measured on
+/// them (`wild_summary`).
+pub(crate) fn plain(o: &MarkerOutcome) -> bool {
+    coverage(&o.factors) == 0.0 && !glared(o) && blur_of(&o.factors) == Blur::Sharp
+}
+
 /// The four disjoint groups the main bar's markers are split into, tried
 /// in this order.
 #[derive(Clone, Copy, PartialEq)]
