@@ -179,6 +179,7 @@ mod tests {
             estimated,
             likelihood: false,
             pose: None,
+            read_at_truth: None,
             factors: Default::default(),
         }
     }

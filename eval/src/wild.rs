@@ -24,10 +24,11 @@
 use std::collections::BTreeMap;
 use std::path::Path;
 
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::draws::{Draws, FactorValue, Factors};
-use crate::error::Result;
+use crate::error::{EvalError, Result};
 use crate::metrics::{centre, dist, MatchRule};
 use crate::pose_error::{pose_error, CameraModel, PoseError};
 use crate::runlog::RunLog;
@@ -77,6 +78,10 @@ pub struct MarkerOutcome {
     pub likelihood: bool,
     /// Pose error from those corners (IPPE).
     pub pose: Option<PoseError>,
+    /// Whether CopperTag's decoder reads the marker at its true corners
+    /// ([`read_at_truth`]); `None` on other systems' runs.
+    #[serde(default)]
+    pub read_at_truth: Option<bool>,
     /// Drawn factor values (empty without `draws.csv`), with the measured
     /// side in pixels as [`SIDE_FACTOR`].
     pub factors: Factors,
@@ -270,8 +275,59 @@ fn outcome(
         estimated: [false; 4],
         likelihood: false,
         pose: None,
+        read_at_truth: None,
         factors,
     }
+}
+
+/// A true marker of a dataset: (image index, marker index).
+pub type MarkerKey = (usize, usize);
+
+/// Whether CopperTag's decoder reads each CopperTag marker of `dataset`
+/// when handed its true corners ([`coppertag::decode_quad`], the
+/// library's decoding from four corners, with its default thresholds), by
+/// (image index, marker index); the images are looked for in `dirs` (the
+/// dataset's directory, or its shards').
+///
+/// Why: a marker the detector misses is lost either in the geometry (no
+/// quad near its corners, or one the detector would not trust) or in its
+/// cells (blur, glare, an occluder leaving too little to read). Read at
+/// the true corners, a marker shows which: the share a perfect quad
+/// search would reach with this decoder, beside the share the detector
+/// found, in each of the wild benchmark's scenarios.
+pub fn read_at_truth(dataset: &Dataset, dirs: &[&Path]) -> Result<BTreeMap<MarkerKey, bool>> {
+    let jobs: Vec<(usize, &String, &Vec<crate::truth::TruthMarker>)> = dataset
+        .images
+        .iter()
+        .filter_map(|(i, img)| dataset.truth.get(img).map(|t| (*i, img, t)))
+        .collect();
+    // In image order, so that the first bad image is the one reported.
+    let per_image: Vec<Result<Vec<(MarkerKey, bool)>>> = jobs
+        .par_iter()
+        .map(|&(index, img, truth)| {
+            let path = dirs
+                .iter()
+                .map(|d| d.join(img))
+                .find(|p| p.exists())
+                .unwrap_or_else(|| dataset.image_path(img));
+            let gray = image::open(&path)
+                .map_err(|e| EvalError::bad(&path, e.to_string()))?
+                .to_luma8();
+            Ok(truth
+                .iter()
+                .filter_map(|m| {
+                    let family = coppertag::Family::by_name(&m.family).ok()?;
+                    let read = coppertag::decode_quad(&gray, family, &m.corners());
+                    Some(((index, m.marker_index), read.is_some_and(|r| r.id == m.id)))
+                })
+                .collect())
+        })
+        .collect();
+    let mut out = BTreeMap::new();
+    for r in per_image {
+        out.extend(r?);
+    }
+    Ok(out)
 }
 
 #[cfg(test)]
@@ -384,6 +440,43 @@ pub(crate) mod tests {
         assert_eq!((w.duplicates, w.wrong_ids, w.false_positives), (1, 1, 1));
         assert!(!w.tag_free);
         assert!(w.outcomes.iter().all(|o| o.factors.is_empty()));
+    }
+
+    /// A tag drawn by the generator reads at its true corners; the same
+    /// corners given another id, or a blank image, do not; a marker of a
+    /// family that is no CopperTag's is not tried; a missing image is an
+    /// error.
+    #[test]
+    fn markers_are_read_at_their_true_corners() {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("images")).unwrap();
+        let fam = coppertag::Family::ct14();
+        let shapes = coppertag::geometry::tag_shapes(fam, 42).unwrap();
+        // A 128 px print: the data square is its middle half.
+        let tag = coppertag_synth::raster::tag_image(&shapes, 128).unwrap();
+        tag.save(dir.path().join("images/000000.png")).unwrap();
+        tag.save(dir.path().join("images/000001.png")).unwrap();
+        image::GrayImage::from_pixel(128, 128, image::Luma([255]))
+            .save(dir.path().join("images/000002.png"))
+            .unwrap();
+        let q = [[31.5, 31.5], [31.5, 95.5], [95.5, 95.5], [95.5, 31.5]];
+        let mut other = test_marker(0, 42, q, None);
+        other.marker_index = 1;
+        other.family = "tag36h11".into();
+        let truth = vec![
+            test_marker(0, 42, q, None),
+            other,
+            test_marker(1, 43, q, None),
+            test_marker(2, 42, q, None),
+        ];
+        let mut ds = dataset_of(&[0, 1, 2], truth);
+        ds.dir = dir.path().to_path_buf();
+        let read = read_at_truth(&ds, &[dir.path()]).unwrap();
+        let want: BTreeMap<(usize, usize), bool> =
+            [((0, 0), true), ((1, 0), false), ((2, 0), false)].into();
+        assert_eq!(read, want);
+        std::fs::remove_file(dir.path().join("images/000002.png")).unwrap();
+        assert!(read_at_truth(&ds, &[dir.path()]).is_err());
     }
 
     #[test]

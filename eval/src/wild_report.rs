@@ -335,7 +335,12 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
              first row's markers split four ways, in this order: a glare spot on the marker; else heavy blur; \
              else an occluder; else none of these; last, the markers with no occluder and no glare spot, of \
              the bars' sizes, split by size and blur (sharp, heavy as above, moderate between). Coverage is \
-             the occluded share of the marker square.\n\n",
+             the occluded share of the marker square. For CopperTag, \"at the true corners\" is the share \
+             its decoder reads when handed each marker's true corners (`decode_quad`, the library's \
+             decoding from four corners): what a perfect quad search would reach with this decoder. A miss \
+             under that line was lost in the geometry (no quad near the marker, or one the detector did \
+             not trust), one over it in the cells (blur, glare or an occluder left too little to read; \
+             the detector, which aligns the print to the image, reads some of those).\n\n",
         );
         out.push_str(&scenarios_table(&w.scenarios, &systems, display));
     }

@@ -281,6 +281,11 @@ pub struct ScenarioRow {
     pub found: usize,
     /// Of those, rough.
     pub rough: usize,
+    /// Markers CopperTag's decoder reads at their true corners
+    /// ([`crate::wild::read_at_truth`]), when every marker of the row was
+    /// tried so (CopperTag's rows).
+    #[serde(default)]
+    pub read_at_truth: Option<usize>,
 }
 
 impl ScenarioRow {
@@ -291,6 +296,12 @@ impl ScenarioRow {
         } else {
             self.found as f64 / self.markers as f64
         }
+    }
+
+    /// Share read at the true corners, where known (0 without markers).
+    pub fn read_at_truth_rate(&self) -> Option<f64> {
+        self.read_at_truth
+            .map(|n| n as f64 / self.markers.max(1) as f64)
     }
 }
 
@@ -316,6 +327,7 @@ pub fn scenario_rows<'a>(
                 markers: mine.len(),
                 found: mine.iter().filter(|o| o.found()).count(),
                 rough: mine.iter().filter(|o| o.status == Status::Rough).count(),
+                read_at_truth: mine.iter().map(|o| o.read_at_truth.map(usize::from)).sum(),
             });
         }
     }
@@ -324,11 +336,13 @@ pub fn scenario_rows<'a>(
 
 /// `wild-scenarios.csv`: one row per scenario and system.
 pub fn scenarios_csv(rows: &[ScenarioRow]) -> String {
-    let mut s = String::from("scenario,why,bar,system,markers,found,rough,found_rate\n");
+    let mut s = String::from(
+        "scenario,why,bar,system,markers,found,rough,found_rate,read_at_truth,read_at_truth_rate\n",
+    );
     for r in rows {
         let _ = writeln!(
             s,
-            "\"{}\",\"{}\",{},{},{},{},{},{:.6}",
+            "\"{}\",\"{}\",{},{},{},{},{},{:.6},{},{}",
             r.scenario.replace('"', "\"\""),
             r.why.replace('"', "\"\""),
             r.bar.map_or(String::new(), |b| format!("{b}")),
@@ -336,7 +350,10 @@ pub fn scenarios_csv(rows: &[ScenarioRow]) -> String {
             r.markers,
             r.found,
             r.rough,
-            r.rate()
+            r.rate(),
+            r.read_at_truth.map_or(String::new(), |n| n.to_string()),
+            r.read_at_truth_rate()
+                .map_or(String::new(), |v| format!("{v:.6}")),
         );
     }
     s
@@ -385,10 +402,14 @@ pub fn scenarios_table(
                 Some(r) => {
                     let _ = write!(
                         out,
-                        " {:.1}% of {} ({} rough) |",
+                        " {:.1}% of {} ({} rough{}) |",
                         100.0 * r.rate(),
                         r.markers,
-                        r.rough
+                        r.rough,
+                        r.read_at_truth_rate().map_or(String::new(), |v| format!(
+                            "; {:.1}% at the true corners",
+                            100.0 * v
+                        ))
                     );
                 }
                 None => out.push_str(" - |"),
@@ -580,8 +601,10 @@ mod tests {
             }
         });
         let csv = scenarios_csv(&rows);
-        assert!(csv.starts_with("scenario,why,bar,system,markers,found,rough,found_rate\n"));
-        assert!(csv.contains("\"coverage <= 30%, side >= 24 px\",\"the reference README's 30%; 24 px, the issue's smallest ct14 square\",0.98,coppertag,5,3,1,0.600000"));
+        assert!(csv.starts_with(
+            "scenario,why,bar,system,markers,found,rough,found_rate,read_at_truth,read_at_truth_rate\n"
+        ));
+        assert!(csv.contains("\"coverage <= 30%, side >= 24 px\",\"the reference README's 30%; 24 px, the issue's smallest ct14 square\",0.98,coppertag,5,3,1,0.600000,,\n"));
         // Quotes inside a reason are doubled.
         assert!(csv.contains("\"the field report's \"\"30-40% coverage\"\"\""));
         let table = scenarios_table(&rows, &systems, |s| s.to_uppercase());
@@ -601,5 +624,33 @@ mod tests {
             "{table}"
         );
         assert_eq!(scenarios_table(&[], &systems, |s| s.into()), "");
+    }
+
+    /// A row counts the markers read at their true corners when every one
+    /// was tried so, and shows their share beside the share found.
+    #[test]
+    fn a_row_counts_the_markers_read_at_their_true_corners() {
+        let mut ms = markers();
+        // The main bar's five: read at their true corners but the last.
+        let main: Vec<usize> = (0..ms.len()).filter(|&k| main_bar(&ms[k])).collect();
+        assert_eq!(main.len(), 5);
+        for &k in &main {
+            ms[k].read_at_truth = Some(k != main[4]);
+        }
+        let systems = vec!["coppertag".to_string()];
+        let rows = scenario_rows(&systems, |_| ms.iter().collect());
+        let main_row = row(&rows, "coverage <= 30%, side >= 24 px");
+        assert_eq!(main_row.read_at_truth, Some(4));
+        assert_eq!(main_row.read_at_truth_rate(), Some(0.8));
+        assert!(scenarios_csv(&rows).contains(",coppertag,5,3,1,0.600000,4,0.800000\n"));
+        assert!(scenarios_table(&rows, &systems, |s| s.into())
+            .contains("| 60.0% of 5 (1 rough; 80.0% at the true corners) |"));
+        // One marker not tried leaves the row without the count.
+        ms[main[0]].read_at_truth = None;
+        let rows = scenario_rows(&systems, |_| ms.iter().collect());
+        assert_eq!(
+            row(&rows, "coverage <= 30%, side >= 24 px").read_at_truth,
+            None
+        );
     }
 }

@@ -623,6 +623,7 @@ pub(crate) mod tests {
             estimated: [false; 4],
             likelihood: false,
             pose: None,
+            read_at_truth: None,
             factors: factors
                 .iter()
                 .map(|(k, v)| (k.to_string(), v.clone()))

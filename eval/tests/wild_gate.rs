@@ -25,6 +25,7 @@ fn outcome(index: usize, status: Status) -> MarkerOutcome {
         estimated: [false; 4],
         likelihood: false,
         pose: None,
+        read_at_truth: None,
         factors: Default::default(),
     }
 }

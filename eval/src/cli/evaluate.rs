@@ -228,13 +228,20 @@ pub fn evaluate_wild(loaded: &[Loaded], rule: MatchRule) -> (WildSummary, Vec<St
     for l in loaded {
         let dirs: Vec<&Path> = l.dirs.iter().map(PathBuf::as_path).collect();
         match wild::open_extras(&dirs) {
-            Ok((draws, camera)) => runs.push(wild::evaluate(
-                &l.run,
-                &l.dataset,
-                draws.as_ref(),
-                &camera,
-                rule,
-            )),
+            Ok((draws, camera)) => {
+                let mut run = wild::evaluate(&l.run, &l.dataset, draws.as_ref(), &camera, rule);
+                if run.detector == "coppertag" && !run.tag_free {
+                    match wild::read_at_truth(&l.dataset, &dirs) {
+                        Ok(read) => {
+                            for o in &mut run.outcomes {
+                                o.read_at_truth = read.get(&(o.index, o.marker_index)).copied();
+                            }
+                        }
+                        Err(e) => errors.push(format!("{}: {e}", l.dataset.name)),
+                    }
+                }
+                runs.push(run);
+            }
             Err(e) => errors.push(format!("{}: {e}", l.dataset.name)),
         }
     }
