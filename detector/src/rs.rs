@@ -380,12 +380,15 @@ impl ReedSolomon {
     /// `0 <= i < P`, into `syn[..P]`; returns whether they are all zero.
     #[inline]
     fn syndromes(&self, word: &[u8], syn: &mut [u8; BUF]) -> bool {
-        // The non-zero symbols, as (position, logarithm).
-        let mut terms = [(0usize, 0usize); BUF];
+        // The non-zero symbols, as (position, logarithm). Bytes, not
+        // `usize`s: a word is at most 255 symbols long (GF(256)) and a
+        // logarithm below 255, and the array is zeroed on every call
+        // (4 KiB of `usize` pairs was 1% of a cluttered frame's decoding).
+        let mut terms = [(0u8, 0u8); BUF];
         let mut count = 0;
         for (j, &c) in word.iter().enumerate() {
             if c != 0 {
-                terms[count] = (j, usize::from(self.gf.log[usize::from(c)]));
+                terms[count] = (j as u8, self.gf.log[usize::from(c)]);
                 count += 1;
             }
         }
@@ -397,7 +400,7 @@ impl ReedSolomon {
             // Both exponents are below the order, so their sum indexes the
             // doubled exponent table directly.
             let v = terms.iter().fold(0u8, |acc, &(j, l)| {
-                acc ^ self.gf.exp[l + usize::from(powers[j])]
+                acc ^ self.gf.exp[usize::from(l) + usize::from(powers[usize::from(j)])]
             });
             *s = v;
             all_zero &= v == 0;
