@@ -285,13 +285,13 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         100.0 * MIN_DETECTABLE_RATE
     );
     out.push_str(
-        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 (ms) | min. size (px) | corners within 2 sigma (observed / estimated) |\n\
+        "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 / max (ms) | min. size (px) | corners within 2 sigma (observed / estimated) |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for r in &w.systems {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} / {:.2} | {} | {} |",
             display(&r.system),
             r.markers,
             pct(r.detection_rate),
@@ -311,6 +311,7 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
             r.jitter_groups,
             r.time_ms.median,
             r.time_ms.p95,
+            r.time_ms.max,
             r.min_detectable_side_px
                 .map_or(format!("no bin >= {:.0}%", 100.0 * MIN_DETECTABLE_RATE), |(lo, hi)| {
                     format!("{lo:.0}-{hi:.0}")

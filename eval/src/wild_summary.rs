@@ -541,21 +541,22 @@ impl WildSummary {
              tag_free_images,tag_free_megapixels,tag_free_false_positives,false_positives_per_mp,\
              pose_n,translation_median_mm,translation_p95_mm,translation_median_pct,translation_p95_pct,\
              rotation_median_deg,rotation_p95_deg,flipped_rate,jitter_groups,jitter_corner_px,\
-             jitter_translation_mm,jitter_rotation_deg,time_median_ms,time_p95_ms,min_detectable_side_lo_px,\
+             jitter_translation_mm,jitter_rotation_deg,time_median_ms,time_p95_ms,time_max_ms,\
+             min_detectable_side_lo_px,\
              min_detectable_side_hi_px,false_positives_per_mp_by_set,sigma_detections,sigma_corners,\
              within_2sigma,within_2sigma_observed,within_2sigma_estimated,within_2sigma_code,\
              within_2sigma_likelihood,within_2sigma_by_set\n",
         );
         for r in &self.systems {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{},{},\"{}\",{}\n",
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{:.4},{},{},\"{}\",{}\n",
                 r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
                 r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
                 r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
                 r.translation_mm.median, r.translation_mm.p95, r.translation_pct.median, r.translation_pct.p95,
                 r.rotation_deg.median, r.rotation_deg.p95, r.flipped_rate, r.jitter_groups,
                 opt(r.jitter_corner_px, 6), opt(r.jitter_translation_mm, 6), opt(r.jitter_rotation_deg, 6),
-                r.time_ms.median, r.time_ms.p95,
+                r.time_ms.median, r.time_ms.p95, r.time_ms.max,
                 opt(r.min_detectable_side_px.map(|m| m.0), 3), opt(r.min_detectable_side_px.map(|m| m.1), 3),
                 r.false_positives_per_mp_by_set
                     .iter()
