@@ -112,6 +112,16 @@ pub struct SystemRow {
     /// set differ: the latter has no blur).
     #[serde(default)]
     pub corner_sigma_by_set: BTreeMap<String, SigmaCoverage>,
+    /// Distance (px) to the true corner of each corner of the found
+    /// markers (correct or rough) that the system reports as observed...
+    #[serde(default)]
+    pub corner_error_observed_px: Stats,
+    /// ... and of each it reports as estimated (a hidden corner placed
+    /// from the rest of the tag; empty for systems that flag none). The
+    /// detector issue bounds the latter's 95th percentile (1.5 px): a
+    /// corner a robot cannot see is still one it docks on.
+    #[serde(default)]
+    pub corner_error_estimated_px: Stats,
 }
 
 /// One bin (or category) of one factor for one system.
@@ -378,6 +388,8 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
             min_detectable_side_px: min_side,
             corner_sigma,
             corner_sigma_by_set,
+            corner_error_observed_px: corner_errors(&outcomes, false),
+            corner_error_estimated_px: corner_errors(&outcomes, true),
         });
     }
     WildSummary {
@@ -511,6 +523,39 @@ fn opt(v: Option<f64>, digits: usize) -> String {
 
 /// The corner-sigma columns of `wild-systems.csv`: counts, shares (empty
 /// when there is nothing to share), and the overall share per set.
+/// Statistics of the corner errors (px) of the found markers among
+/// `outcomes`, over the corners reported as `estimated` or as observed.
+fn corner_errors(outcomes: &[&MarkerOutcome], estimated: bool) -> Stats {
+    let errors: Vec<f64> = outcomes
+        .iter()
+        .filter(|o| o.found())
+        .filter_map(|o| Some((o.corner_errors_px?, o.estimated)))
+        .flat_map(|(e, est)| {
+            (0..4)
+                .filter(move |&k| est[k] == estimated)
+                .map(move |k| e[k])
+        })
+        .collect();
+    Stats::of(&errors)
+}
+
+/// The corner-error columns of `wild-systems.csv`: count, median and p95
+/// of the observed corners, then of the estimated ones (empty without any).
+fn corner_error_columns(r: &SystemRow) -> String {
+    let cols = |s: &Stats| {
+        if s.n == 0 {
+            "0,,".to_string()
+        } else {
+            format!("{},{:.4},{:.4}", s.n, s.median, s.p95)
+        }
+    };
+    format!(
+        "{},{}",
+        cols(&r.corner_error_observed_px),
+        cols(&r.corner_error_estimated_px)
+    )
+}
+
 fn sigma_columns(r: &SystemRow) -> String {
     let Some(c) = &r.corner_sigma else {
         return ",,,,,,,\"\"".into();
@@ -545,11 +590,13 @@ impl WildSummary {
              min_detectable_side_lo_px,\
              min_detectable_side_hi_px,false_positives_per_mp_by_set,sigma_detections,sigma_corners,\
              within_2sigma,within_2sigma_observed,within_2sigma_estimated,within_2sigma_code,\
-             within_2sigma_likelihood,within_2sigma_by_set\n",
+             within_2sigma_likelihood,within_2sigma_by_set,corner_error_observed_n,\
+             corner_error_observed_median_px,corner_error_observed_p95_px,corner_error_estimated_n,\
+             corner_error_estimated_median_px,corner_error_estimated_p95_px\n",
         );
         for r in &self.systems {
             s.push_str(&format!(
-                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{:.4},{},{},\"{}\",{}\n",
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{:.4},{},{},\"{}\",{},{}\n",
                 r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
                 r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
                 r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
@@ -563,7 +610,8 @@ impl WildSummary {
                     .map(|(k, v)| format!("{k}={v:.6}"))
                     .collect::<Vec<_>>()
                     .join(";"),
-                sigma_columns(r)
+                sigma_columns(r),
+                corner_error_columns(r)
             ));
         }
         s
@@ -724,7 +772,7 @@ pub(crate) mod tests {
             .lines()
             .next()
             .unwrap()
-            .ends_with(",within_2sigma_by_set"));
+            .contains(",within_2sigma_by_set,corner_error_observed_n,"));
         let row = |sys: &str| {
             csv.lines()
                 .find(|l| l.starts_with(sys))
@@ -733,10 +781,10 @@ pub(crate) mod tests {
         };
         assert!(
             row("coppertag")
-                .ends_with(",3,12,0.583333,0.583333,,0.583333,,\"d=0.875000;j=0.000000\""),
+                .contains(",3,12,0.583333,0.583333,,0.583333,,\"d=0.875000;j=0.000000\","),
             "{csv}"
         );
-        assert!(row("stag").ends_with(",,,,,,,\"\""), "{csv}");
+        assert!(row("stag").contains(",,,,,,,\"\","), "{csv}");
         // Every row has as many columns as the header (quoted cells hold
         // no commas here).
         let cols = |l: &str| l.split(',').count();
@@ -755,6 +803,36 @@ pub(crate) mod tests {
         let back: WildSummary = serde_json::from_value(v).unwrap();
         assert_eq!(back.systems[0].corner_sigma, None);
         assert_eq!(back, s);
+    }
+
+    /// The corner errors are split by what the system says of each corner,
+    /// over found markers only.
+    #[test]
+    fn corner_errors_split_into_observed_and_estimated() {
+        let mut found = outcome(0, Status::Correct, &[]);
+        found.corner_errors_px = Some([0.1, 0.2, 1.5, 0.3]);
+        found.estimated = [false, false, true, false];
+        let mut rough = outcome(1, Status::Rough, &[]);
+        rough.corner_errors_px = Some([0.4, 4.0, 2.5, 0.5]);
+        rough.estimated = [false, true, true, false];
+        // A miss has no corners; one given anyway does not count.
+        let mut missed = outcome(2, Status::Missed, &[]);
+        missed.corner_errors_px = Some([9.0; 4]);
+        missed.estimated = [true; 4];
+        let s = summarise(&[run("coppertag", vec![found, rough, missed])]);
+        let r = &s.systems[0];
+        let (obs, est) = (&r.corner_error_observed_px, &r.corner_error_estimated_px);
+        assert_eq!((obs.n, obs.median, obs.max), (5, 0.3, 0.5));
+        assert_eq!((est.n, est.max), (3, 4.0));
+        assert!(s
+            .systems_csv()
+            .contains(",5,0.3000,0.5000,3,2.5000,4.0000\n"));
+        // A system that flags no corner estimated has no estimated errors.
+        let mut plain = outcome(0, Status::Correct, &[]);
+        plain.corner_errors_px = Some([0.1; 4]);
+        let s = summarise(&[run("apriltag3", vec![plain])]);
+        assert_eq!(s.systems[0].corner_error_estimated_px.n, 0);
+        assert!(s.systems_csv().ends_with(",4,0.1000,0.1000,0,,\n"));
     }
 
     /// The minimum detectable size counts only markers in plain view, and
