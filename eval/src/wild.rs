@@ -444,8 +444,8 @@ pub(crate) mod tests {
 
     /// A tag drawn by the generator reads at its true corners; the same
     /// corners given another id, or a blank image, do not; a marker of a
-    /// family that is no CopperTag's is not tried; a missing image is an
-    /// error.
+    /// family that is no CopperTag's is not tried; a truncated or missing
+    /// image is an error.
     #[test]
     fn markers_are_read_at_their_true_corners() {
         let dir = tempfile::tempdir().unwrap();
@@ -475,8 +475,14 @@ pub(crate) mod tests {
         let want: BTreeMap<(usize, usize), bool> =
             [((0, 0), true), ((1, 0), false), ((2, 0), false)].into();
         assert_eq!(read, want);
-        std::fs::remove_file(dir.path().join("images/000002.png")).unwrap();
-        assert!(read_at_truth(&ds, &[dir.path()]).is_err());
+        // A truncated image and a missing one are errors naming the file.
+        let bad = dir.path().join("images/000002.png");
+        std::fs::write(&bad, b"\x89PNG\r\n\x1a\n").unwrap();
+        let err = read_at_truth(&ds, &[dir.path()]).unwrap_err().to_string();
+        assert!(err.contains("000002.png"), "{err}");
+        std::fs::remove_file(&bad).unwrap();
+        let err = read_at_truth(&ds, &[dir.path()]).unwrap_err().to_string();
+        assert!(err.contains("000002.png"), "{err}");
     }
 
     #[test]

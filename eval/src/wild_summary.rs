@@ -273,10 +273,8 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
     let mut datasets: Vec<String> = runs.iter().map(|r| r.dataset.clone()).collect();
     datasets.sort();
     datasets.dedup();
-    let curves = factor_curves(runs, &systems, |_| true);
-    let plain_sides = factor_curves(runs, &systems, plain)
-        .into_iter()
-        .find(|c| c.factor == SIDE_FACTOR);
+    let curves = factor_curves(runs, &systems);
+    let plain_sides = plain_side_curve(runs, &systems);
     let mut rows = Vec::new();
     for sys in &systems {
         let mine: Vec<&WildRun> = runs.iter().filter(|r| &r.detector == sys).collect();
@@ -405,8 +403,6 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
     }
 }
 
-/// Detection rate against every factor any counted marker was drawn with
-/// (the jitter group excepted: it names scenes, it is not a condition).
 /// The minimum detectable size of `system` on the plain markers' side
 /// curve `sides`: the smallest bin (low, high px) from which every bin
 /// with at least [`MIN_DETECTABLE_MARKERS`] of the system's markers finds
@@ -437,17 +433,15 @@ fn min_detectable_side(sides: &FactorCurve, system: &str) -> Option<(f64, f64)> 
     mine.get(from).map(|p| bins.range(p.bin))
 }
 
-/// The detection rate of every system against every drawn factor, over
-/// the counted markers `keep` holds.
-fn factor_curves(
-    runs: &[WildRun],
-    systems: &[String],
-    keep: impl Fn(&MarkerOutcome) -> bool,
-) -> Vec<FactorCurve> {
-    // factor -> (system, outcome)
-    let mut by_factor: BTreeMap<&str, Vec<(&str, &FactorValue, Status)>> = BTreeMap::new();
+/// One marker's value of a factor: (system, value, outcome).
+type Observation<'a> = (&'a str, &'a FactorValue, Status);
+
+/// Detection rate against every factor any counted marker was drawn with
+/// (the jitter group excepted: it names scenes, it is not a condition).
+fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
+    let mut by_factor: BTreeMap<&str, Vec<Observation>> = BTreeMap::new();
     for r in runs.iter().filter(|r| !r.tag_free) {
-        for o in counted(r).into_iter().filter(|o| keep(o)) {
+        for o in counted(r) {
             for (f, v) in &o.factors {
                 if f != JITTER_GROUP {
                     by_factor.entry(f.as_str()).or_default().push((
@@ -459,62 +453,80 @@ fn factor_curves(
             }
         }
     }
-    let mut curves = Vec::new();
-    for (factor, obs) in by_factor {
-        let numeric: Option<Vec<f64>> = obs.iter().map(|(_, v, _)| v.as_num()).collect();
-        let (bins, labels): (Option<Bins>, Vec<String>) = match &numeric {
-            Some(values) => match Bins::of(values) {
-                Some(b) => {
-                    let labels = (0..b.len()).map(|k| b.label(k)).collect();
-                    (Some(b), labels)
-                }
-                None => continue,
-            },
-            None => {
-                let mut l: Vec<String> = obs.iter().map(|(_, v, _)| v.label()).collect();
-                l.sort();
-                l.dedup();
-                (None, l)
-            }
-        };
-        let mut points = Vec::new();
-        for sys in systems {
-            let mut cells = vec![(0usize, 0usize, 0usize); labels.len()];
-            for (_, v, status) in obs.iter().filter(|(s, _, _)| *s == sys.as_str()) {
-                let k = match (&bins, v) {
-                    (Some(b), FactorValue::Num(x)) => b.index(*x),
-                    _ => labels.iter().position(|l| *l == v.label()),
-                };
-                let Some(k) = k else { continue };
-                cells[k].0 += 1;
-                match status {
-                    Status::Correct => cells[k].1 += 1,
-                    Status::Rough => cells[k].2 += 1,
-                    Status::Missed => {}
-                }
-            }
-            if cells.iter().all(|c| c.0 == 0) {
-                continue;
-            }
-            for (k, (n, correct, rough)) in cells.into_iter().enumerate() {
-                points.push(CurvePoint {
-                    system: sys.clone(),
-                    bin: k,
-                    label: labels[k].clone(),
-                    centre: bins.as_ref().map(|b| b.centre(k)),
-                    markers: n,
-                    correct,
-                    rough,
-                });
+    by_factor
+        .into_iter()
+        .filter_map(|(factor, obs)| curve(factor, &obs, systems))
+        .collect()
+}
+
+/// Detection rate against the side in pixels over the counted markers in
+/// plain view ([`plain`]), for [`min_detectable_side`].
+fn plain_side_curve(runs: &[WildRun], systems: &[String]) -> Option<FactorCurve> {
+    let mut obs: Vec<Observation> = Vec::new();
+    for r in runs.iter().filter(|r| !r.tag_free) {
+        for o in counted(r).into_iter().filter(|o| plain(o)) {
+            if let Some(v) = o.factors.get(SIDE_FACTOR) {
+                obs.push((r.detector.as_str(), v, o.status));
             }
         }
-        curves.push(FactorCurve {
-            factor: factor.to_string(),
-            bins,
-            points,
-        });
     }
-    curves
+    curve(SIDE_FACTOR, &obs, systems)
+}
+
+/// The curve of `factor` from its observations `obs`: bins (or
+/// categories) and each system's points; `None` for a numeric factor with
+/// nothing to bin ([`Bins::of`]).
+fn curve(factor: &str, obs: &[Observation], systems: &[String]) -> Option<FactorCurve> {
+    let numeric: Option<Vec<f64>> = obs.iter().map(|(_, v, _)| v.as_num()).collect();
+    let (bins, labels): (Option<Bins>, Vec<String>) = match &numeric {
+        Some(values) => {
+            let b = Bins::of(values)?;
+            let labels = (0..b.len()).map(|k| b.label(k)).collect();
+            (Some(b), labels)
+        }
+        None => {
+            let mut l: Vec<String> = obs.iter().map(|(_, v, _)| v.label()).collect();
+            l.sort();
+            l.dedup();
+            (None, l)
+        }
+    };
+    let mut points = Vec::new();
+    for sys in systems {
+        let mut cells = vec![(0usize, 0usize, 0usize); labels.len()];
+        for (_, v, status) in obs.iter().filter(|(s, _, _)| *s == sys.as_str()) {
+            let k = match (&bins, v) {
+                (Some(b), FactorValue::Num(x)) => b.index(*x),
+                _ => labels.iter().position(|l| *l == v.label()),
+            };
+            let Some(k) = k else { continue };
+            cells[k].0 += 1;
+            match status {
+                Status::Correct => cells[k].1 += 1,
+                Status::Rough => cells[k].2 += 1,
+                Status::Missed => {}
+            }
+        }
+        if cells.iter().all(|c| c.0 == 0) {
+            continue;
+        }
+        for (k, (n, correct, rough)) in cells.into_iter().enumerate() {
+            points.push(CurvePoint {
+                system: sys.clone(),
+                bin: k,
+                label: labels[k].clone(),
+                centre: bins.as_ref().map(|b| b.centre(k)),
+                markers: n,
+                correct,
+                rough,
+            });
+        }
+    }
+    Some(FactorCurve {
+        factor: factor.to_string(),
+        bins,
+        points,
+    })
 }
 
 fn opt(v: Option<f64>, digits: usize) -> String {
