@@ -6,9 +6,11 @@
 //! (`tests/common`). The clean one-tag frames of `benches/detect.rs` are a
 //! third set, for the per-stage split of the common path.
 //!
-//! For each set it prints, for a one-thread detector and one of
-//! [`THREADS`] threads ([`coppertag::DetectorConfig::threads`]) timed in
-//! the same run, frame by frame in turn, the median, 95th percentile and
+//! For each set it prints, for a one-thread detector and two of
+//! [`THREADS`] threads ([`coppertag::DetectorConfig::threads`]), one with
+//! its threads left to the system and one with them pinned to cores
+//! ([`coppertag::DetectorConfig::pin_threads`]), timed in the same run,
+//! frame by frame in turn, the median, 95th percentile and
 //! maximum time per frame (each frame's time is its median over [`ROUNDS`]
 //! runs, so one preempted run does not count), the median over frames of
 //! every stage's time (from [`coppertag::Detector::stats`]) and the ratios
@@ -352,8 +354,12 @@ fn bench(c: &mut Criterion) {
         .and_then(|v| v.parse().ok())
         .unwrap_or(THREADS);
     let families = std::env::var("COPPERTAG_BENCH_FAMILIES").ok();
-    let detector = |threads: usize| {
-        let label = format!("{threads} thread{}", if threads == 1 { "" } else { "s" });
+    let detector = |threads: usize, pin_threads: bool| {
+        let label = format!(
+            "{threads} thread{}{}",
+            if threads == 1 { "" } else { "s" },
+            if pin_threads { ", pinned" } else { "" }
+        );
         let base = match &families {
             Some(f) => {
                 let names: Vec<&str> = f.split(',').collect();
@@ -362,17 +368,22 @@ fn bench(c: &mut Criterion) {
             }
             None => DetectorConfig::default(),
         };
-        let cfg = DetectorConfig { threads, ..base };
+        let cfg = DetectorConfig {
+            threads,
+            pin_threads,
+            ..base
+        };
         (label, Detector::new(cfg).unwrap())
     };
-    let mut dets = vec![detector(1)];
+    let mut dets = vec![detector(1, false)];
     if threads != 1 {
-        dets.push(detector(threads));
+        dets.push(detector(threads, false));
+        dets.push(detector(threads, true));
     }
     for set in &sets {
         summary(&mut dets, set, rounds);
         if threads > 1 {
-            side_by_side(set, threads, rounds, || detector(1).1);
+            side_by_side(set, threads, rounds, || detector(1, false).1);
         }
     }
     let mut det = dets.swap_remove(0).1;

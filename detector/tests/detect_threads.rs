@@ -31,20 +31,23 @@ fn counts(s: &DetectionStats) -> [usize; 10] {
     ]
 }
 
-/// Detects on `frames` with one thread and with each of [`THREADS`]
-/// (detectors reused across frames, as a camera loop does), and checks
+/// Detects on `frames` with one thread and with each of [`THREADS`], and
+/// with 2 threads pinned to cores (detectors reused across frames, as a
+/// camera loop does), and checks
 /// that every result and count agrees. Returns the one-thread detector's
 /// detections and small-tag regions over the frames.
 fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (usize, usize) {
-    let make = |threads| {
+    let make = |threads, pin_threads| {
         Detector::new(DetectorConfig {
             threads,
+            pin_threads,
             ..cfg.clone()
         })
         .unwrap()
     };
-    let mut one = make(1);
-    let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t)).collect();
+    let mut one = make(1, false);
+    let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t, false)).collect();
+    many.push(make(2, true));
     let (mut total, mut regions) = (0, 0);
     for (i, frame) in frames.iter().enumerate() {
         let want = one.detect(frame);
@@ -52,18 +55,18 @@ fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (us
         regions += one.stats().small_regions;
         for det in &mut many {
             let got = det.detect(frame);
-            let threads = det.config().threads;
+            let (threads, pinned) = (det.config().threads, det.config().pin_threads);
             // Debug prints floats in their shortest exact form: equal
             // strings are equal bits.
             assert_eq!(
                 format!("{got:?}"),
                 format!("{want:?}"),
-                "frame {i}, {threads} threads"
+                "frame {i}, {threads} threads, pinned {pinned}"
             );
             assert_eq!(
                 counts(det.stats()),
                 counts(one.stats()),
-                "frame {i}, {threads} threads"
+                "frame {i}, {threads} threads, pinned {pinned}"
             );
         }
     }

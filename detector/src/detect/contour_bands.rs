@@ -290,7 +290,7 @@ mod tests {
         let kinds = |c: &Contours| -> Vec<(u32, u32, bool)> {
             c.list.iter().map(|c| (c.start, c.len, c.hole)).collect()
         };
-        let w = Workers::<()>::new(2).unwrap();
+        let w = Workers::<()>::new(2, false).unwrap();
         let s = &mut BandScratch::default();
         let h = ph - 2;
         for bands in [1, 2, 3, 7, h / 5, h / 2, h] {

@@ -759,7 +759,7 @@ impl Detector {
             n => n,
         };
         let workers = if threads > 1 {
-            Some(Workers::new(threads)?)
+            Some(Workers::new(threads, config.pin_threads)?)
         } else {
             None
         };
