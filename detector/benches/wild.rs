@@ -8,8 +8,9 @@
 //!
 //! For each set it prints, for a one-thread detector and two of
 //! [`THREADS`] threads ([`coppertag::DetectorConfig::threads`]), one with
-//! its threads left to the system and one with them pinned to cores
-//! ([`coppertag::DetectorConfig::pin_threads`]), timed in the same run,
+//! its threads pinned to cores as by default and one with them left to the
+//! system ([`coppertag::DetectorConfig::pin_threads`]), timed in the same
+//! run,
 //! frame by frame in turn, the median, 95th percentile and
 //! maximum time per frame (each frame's time is its median over [`ROUNDS`]
 //! runs, so one preempted run does not count), the median over frames of
@@ -358,7 +359,11 @@ fn bench(c: &mut Criterion) {
         let label = format!(
             "{threads} thread{}{}",
             if threads == 1 { "" } else { "s" },
-            if pin_threads { ", pinned" } else { "" }
+            if threads > 1 && !pin_threads {
+                ", unpinned"
+            } else {
+                ""
+            }
         );
         let base = match &families {
             Some(f) => {
@@ -377,8 +382,8 @@ fn bench(c: &mut Criterion) {
     };
     let mut dets = vec![detector(1, false)];
     if threads != 1 {
-        dets.push(detector(threads, false));
         dets.push(detector(threads, true));
+        dets.push(detector(threads, false));
     }
     for set in &sets {
         summary(&mut dets, set, rounds);

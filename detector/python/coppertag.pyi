@@ -125,7 +125,7 @@ class Detector:
         small_tags: bool = True,
         max_candidates: int = 400,
         threads: int = 1,
-        pin_threads: bool = False,
+        pin_threads: bool = True,
     ) -> None: ...
     def detect(self, image: npt.NDArray[np.uint8]) -> list[Detection]:
         """Every tag in a 2-D uint8 grey image, sorted by family and id.

@@ -31,9 +31,9 @@ fn counts(s: &DetectionStats) -> [usize; 10] {
     ]
 }
 
-/// Detects on `frames` with one thread and with each of [`THREADS`], and
-/// with 2 threads pinned to cores (detectors reused across frames, as a
-/// camera loop does), and checks
+/// Detects on `frames` with one thread and with each of [`THREADS`] (their
+/// threads pinned, as by default), and with 2 threads left unpinned
+/// (detectors reused across frames, as a camera loop does), and checks
 /// that every result and count agrees. Returns the one-thread detector's
 /// detections and small-tag regions over the frames.
 fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (usize, usize) {
@@ -46,8 +46,8 @@ fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (us
         .unwrap()
     };
     let mut one = make(1, false);
-    let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t, false)).collect();
-    many.push(make(2, true));
+    let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t, true)).collect();
+    many.push(make(2, false));
     let (mut total, mut regions) = (0, 0);
     for (i, frame) in frames.iter().enumerate() {
         let want = one.detect(frame);

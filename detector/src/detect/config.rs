@@ -142,17 +142,22 @@ pub struct DetectorConfig {
     /// [`MAX_THREADS`]. The detections and [`crate::DetectionStats`] counts
     /// are the same for every value; only the times differ.
     pub threads: usize,
-    /// With [`DetectorConfig::threads`] over 1: pin the detector's thread
-    /// `i` to the `i`-th core the thread creating the detector may run on
-    /// (left unpinned when there are fewer such cores than threads).
-    /// Default false. Unpinned, the threads are where the system puts
-    /// them, and on the project's 2-core virtual machine it often put both
-    /// on one core for milliseconds after a pause between frames, the
-    /// other core idle: a 4K frame on 2 threads then took 15.5 ms in the
-    /// median with `coppertag detect` against 10.4-11 ms pinned (one
-    /// thread: 17 ms). Pinned, the threads cannot move away from a core
-    /// another busy program runs on, and two pinned detectors share the
-    /// same first cores: pin when the detector has the cores to itself.
+    /// With [`DetectorConfig::threads`] over 1: pin each of the detector's
+    /// threads to a core of its own, among the cores the thread creating
+    /// the detector may run on (left unpinned when there are fewer such
+    /// cores than threads). Default true. Detectors made one after another
+    /// in a program take the next cores in turn, so that several pinned
+    /// detectors (one per camera, say) do not all land on the first ones.
+    ///
+    /// Why by default: left to the system, on the project's 2-core virtual
+    /// machine both threads often ran on one core for milliseconds, the
+    /// other core idle, worst after a pause between frames. `coppertag
+    /// detect --json --stats` on 2 threads over the wild benchmark's 4K
+    /// frames took 16.6 ms a frame unpinned and 10.7 ms pinned (17.2 ms on
+    /// one thread), over its 1080p frames 6.3 and 5.7 ms (7.7 ms). False
+    /// leaves the threads to the system: better when other busy programs
+    /// share the machine's cores, since a pinned thread cannot move away
+    /// from one of them.
     pub pin_threads: bool,
 }
 
@@ -185,7 +190,7 @@ impl Default for DetectorConfig {
             small_tags: true,
             max_candidates: 400,
             threads: 1,
-            pin_threads: false,
+            pin_threads: true,
         }
     }
 }

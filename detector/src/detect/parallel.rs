@@ -16,13 +16,19 @@
 //! every stage runs its sequential code as before.
 
 use std::ops::Range;
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::sync::{Mutex, MutexGuard, PoisonError};
 
 use rayon::prelude::*;
 use rayon::ThreadPool;
 
 use crate::{Error, Result};
+
+/// Where the next pinned pool's cores start, counted over the cores a
+/// program may run on (taken modulo their number): pools made one after
+/// another take the cores in turn, so that two detectors of two threads
+/// on a four-core machine get two cores each.
+static NEXT_CORE: AtomicUsize = AtomicUsize::new(0);
 
 /// Pieces per thread a list is cut into by [`Workers::map_ranges`]: more
 /// than one, so that a thread slowed by another process (or a piece
@@ -40,14 +46,19 @@ pub(crate) struct Workers<S> {
 }
 
 impl<S: Default + Send> Workers<S> {
-    /// A pool of `threads` (at least 2) threads, thread `i` pinned to the
-    /// `i`-th core the calling thread may run on if `pin` and there are at
-    /// least `threads` such cores (else, or where the system refuses, left
-    /// to the scheduler).
+    /// A pool of `threads` (at least 2) threads. With `pin`, and at least
+    /// `threads` cores the calling thread may run on, each thread is pinned
+    /// to a core of its own: the next `threads` of those cores in turn
+    /// after the ones the last pinned pool took ([`NEXT_CORE`]); else, or
+    /// where the system refuses, the threads are left to the scheduler.
     pub(crate) fn new(threads: usize, pin: bool) -> Result<Self> {
         let cores = if pin {
             core_affinity::get_core_ids()
                 .filter(|c| c.len() >= threads)
+                .map(|c| {
+                    let first = NEXT_CORE.fetch_add(threads, Ordering::Relaxed);
+                    (0..threads).map(|i| c[(first + i) % c.len()]).collect()
+                })
                 .unwrap_or_default()
         } else {
             Vec::new()

@@ -66,13 +66,13 @@ pub struct DetectArgs {
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=256))]
     pub(super) threads: Option<u64>,
 
-    /// With --threads over 1 for images: pin each of the detector's threads
-    /// to a core of its own (the detector's `pin_threads` setting). Faster
-    /// and steadier when the machine is otherwise idle (on a 2-core virtual
-    /// machine the system often left both threads on one core); slower when
-    /// other busy programs share those cores.
+    /// With --threads over 1 for images: leave the detector's threads to
+    /// the system instead of pinning each to a core of its own (the
+    /// detector's `pin_threads` setting, on by default). Pinned is faster
+    /// and steadier when the machine is otherwise idle; unpinned can be
+    /// better when other busy programs share the cores.
     #[arg(long, requires = "threads", conflicts_with = "mcap")]
-    pub(super) pin_threads: bool,
+    pub(super) unpinned: bool,
 
     /// No progress bar (with --mcap).
     #[arg(long, short, requires = "mcap")]
@@ -209,7 +209,7 @@ pub fn run(args: &DetectArgs) -> Result<()> {
             (None, Some(t)) => usize::try_from(t).context("--threads is too large")?,
             _ => 1,
         },
-        pin_threads: args.pin_threads,
+        pin_threads: !args.unpinned,
         ..DetectorConfig::with_builtin_families(&args.family).context("--family")?
     };
     if let Some(input) = &args.mcap {
