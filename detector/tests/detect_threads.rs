@@ -16,7 +16,7 @@ use image::GrayImage;
 const THREADS: [usize; 2] = [2, 3];
 
 /// Every count of `s`, times left out (they differ from run to run).
-fn counts(s: &DetectionStats) -> [usize; 10] {
+fn counts(s: &DetectionStats) -> [usize; 11] {
     [
         s.width as usize,
         s.height as usize,
@@ -27,6 +27,7 @@ fn counts(s: &DetectionStats) -> [usize; 10] {
         s.candidates,
         s.decode_attempts,
         s.small_regions,
+        s.rim_decodes,
         s.detections,
     ]
 }

@@ -226,6 +226,10 @@ pub struct DetectionStats {
     pub decode_attempts: usize,
     /// Regions around small disc rims segmented again at full resolution.
     pub small_regions: usize,
+    /// Candidates the rim look predicted from disc rims alone and decoded
+    /// (counted in `decode_attempts` too); it stops after
+    /// `RIM_MAX_FAILED_RUN` (10) in a row that read nothing.
+    pub rim_decodes: usize,
     /// Tags reported.
     pub detections: usize,
 }
@@ -437,6 +441,21 @@ const RIM_SIDE_TOLERANCE: f64 = 0.1;
 /// decoded instead cost 3-3.5 ms a frame.
 const RIM_MAX_CELL_PX: f64 = 4.0;
 
+/// Most rim candidates in a row the rim look decodes in vain before it
+/// gives up on the frame's other rims (a candidate read, or found to be
+/// another family's print, starts the count again). A rim costs 1-2.5 ms
+/// to decode in vain (print alignment, the aligned read, up to six moved
+/// reads, the refined read), and on photographs of printed text every
+/// round letter is a rim: the slowest frame of the wild benchmark's
+/// tag-free photographs (fp-photos 000087) spent 55 ms of its 67 ms on 22
+/// such rims, none a tag. On the wild set (3000 frames, 1454 rim looks,
+/// 258 tags read from the rim) the longest run of rims decoded in vain
+/// before one that read was 7, and 241 of the 244 looks that read a tag
+/// read each after at most 1 in vain; the cap leaves that margin, and a
+/// board of many small tags, whose reads break the runs, is looked at
+/// whole.
+const RIM_MAX_FAILED_RUN: usize = 10;
+
 /// Whether the anchor of rim `e` (working coordinates, `scale` full px per
 /// working px) lies in any of the `quads` (full-resolution corners).
 fn rim_inside<'a>(
@@ -452,8 +471,9 @@ fn rim_inside<'a>(
 /// the main look ([`rim::rim_candidate`], `scale` the main look's) whose
 /// anchor lies in no tag `found` so far and in no data square of a family
 /// not decoded (`foreign`, see [`decoding::Decoded::foreign`]), decoded in
-/// the rims' order, at most `budget`. Returns the tags found and the
-/// candidates decoded.
+/// the rims' order, at most `budget`, and no further once
+/// [`RIM_MAX_FAILED_RUN`] in a row have read nothing. Returns the tags
+/// found and the candidates decoded.
 #[allow(clippy::too_many_arguments)]
 fn rim_look(
     img: &GrayView<'_>,
@@ -495,7 +515,33 @@ fn rim_look(
         max_attempts: budget,
         ..*p
     };
-    let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
+    let mut in_vain = 0;
+    let out = decoding::decode_in_order(
+        &cands,
+        scale,
+        &params,
+        |j, centre| {
+            if in_vain >= RIM_MAX_FAILED_RUN {
+                return decoding::Outcome::Refused;
+            }
+            let o = decoding::outcome(
+                img,
+                &cands[j],
+                scale,
+                centre,
+                targets,
+                &params,
+                &mut ws.rscratch,
+            );
+            match &o {
+                decoding::Outcome::Read(None) => in_vain += 1,
+                decoding::Outcome::Read(Some(_)) | decoding::Outcome::Foreign(_) => in_vain = 0,
+                decoding::Outcome::Refused => {}
+            }
+            o
+        },
+        |_, _, _| {},
+    );
     ws.rim_cands = cands;
     (out.found, out.attempts)
 }
@@ -959,7 +1005,9 @@ impl Detector {
         };
         let covered = {
             let rims = std::mem::take(&mut ws.rims);
+            let before = attempts;
             let more = look(ws, &rims, &found, &mut attempts);
+            st.rim_decodes = attempts - before;
             let covered: Vec<ellipses::Ellipse> = rims
                 .iter()
                 .filter(|e| rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
@@ -991,7 +1039,9 @@ impl Detector {
             .filter(|e| !rim_inside(e, scale, out.iter().map(|d| &d.corners)))
             .collect();
         if !orphans.is_empty() {
+            let before = attempts;
             let more = look(ws, &orphans, &[], &mut attempts);
+            st.rim_decodes += attempts - before;
             out.extend(decoding::verify_all(
                 &img,
                 decoding::one_per_tag(more),

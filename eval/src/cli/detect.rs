@@ -110,7 +110,7 @@ pub struct DetectArgs {
     pub(super) no_small_tags: bool,
 
     /// With --json: add each image's stage times (ms) and counts (borders,
-    /// lines, corners, rims, candidates, decodes, small-tag regions).
+    /// lines, corners, rims, candidates, decodes, small-tag regions, decodes of the rim look).
     #[arg(long, requires = "json")]
     pub(super) stats: bool,
 
@@ -265,6 +265,7 @@ fn stats_json(st: &coppertag::DetectionStats) -> serde_json::Value {
         "candidates": st.candidates,
         "decode_attempts": st.decode_attempts,
         "small_regions": st.small_regions,
+        "rim_decodes": st.rim_decodes,
     })
 }
 
