@@ -47,6 +47,11 @@ pub(crate) struct DecodingParams {
     /// Most candidates refined and decoded per frame
     /// (`DetectorConfig::max_candidates`).
     pub max_attempts: usize,
+    /// Most candidates in a row decoded to nothing before the loop gives
+    /// up on the rest (a reading, or another family's square, starts the
+    /// count again): `usize::MAX` (no such stop) but in the rim look
+    /// (`RIM_MAX_FAILED_RUN` in `detect/mod.rs`).
+    pub max_in_vain_run: usize,
     /// Extra overlapping candidates decoded for a tag already found with
     /// corrections.
     pub max_rivals: usize,
@@ -787,8 +792,10 @@ pub(super) fn decode_in_order(
     let mut found: Vec<Found> = Vec::new();
     let mut foreign: Vec<Quad> = Vec::new();
     let mut attempts = 0;
+    // Candidates decoded to nothing since the last reading.
+    let mut in_vain = 0;
     for (j, cand) in candidates.iter().enumerate() {
-        if attempts >= p.max_attempts {
+        if attempts >= p.max_attempts || in_vain >= p.max_in_vain_run {
             break;
         }
         let centre = centre_of(cand, scale);
@@ -804,15 +811,18 @@ pub(super) fn decode_in_order(
             (None, Outcome::Refused) => {}
             (rival, Outcome::Read(best)) => {
                 attempts += 1;
+                in_vain = if best.is_some() { 0 } else { in_vain + 1 };
                 take_reading(&mut found, rival, best.map(|b| *b));
             }
             // A rival showing another family's grid read nothing.
             (Some(r), Outcome::Foreign(_)) => {
                 attempts += 1;
+                in_vain = 0;
                 found[r].rivals += 1;
             }
             (None, Outcome::Foreign(q)) => {
                 attempts += 1;
+                in_vain = 0;
                 foreign.push(*q);
             }
         }
@@ -1186,6 +1196,7 @@ mod tests {
     fn params() -> DecodingParams {
         DecodingParams {
             max_attempts: 100,
+            max_in_vain_run: usize::MAX,
             max_rivals: MAX_RIVALS,
             refine: RefineParams {
                 refine: true,

@@ -285,6 +285,7 @@ impl StageParams {
             },
             decoding: decoding::DecodingParams {
                 max_attempts: cfg.max_candidates,
+                max_in_vain_run: usize::MAX,
                 max_rivals: decoding::MAX_RIVALS,
                 refine: refine::RefineParams {
                     refine: cfg.refine_corners,
@@ -513,35 +514,10 @@ fn rim_look(
     );
     let params = decoding::DecodingParams {
         max_attempts: budget,
+        max_in_vain_run: RIM_MAX_FAILED_RUN,
         ..*p
     };
-    let mut in_vain = 0;
-    let out = decoding::decode_in_order(
-        &cands,
-        scale,
-        &params,
-        |j, centre| {
-            if in_vain >= RIM_MAX_FAILED_RUN {
-                return decoding::Outcome::Refused;
-            }
-            let o = decoding::outcome(
-                img,
-                &cands[j],
-                scale,
-                centre,
-                targets,
-                &params,
-                &mut ws.rscratch,
-            );
-            match &o {
-                decoding::Outcome::Read(None) => in_vain += 1,
-                decoding::Outcome::Read(Some(_)) | decoding::Outcome::Foreign(_) => in_vain = 0,
-                decoding::Outcome::Refused => {}
-            }
-            o
-        },
-        |_, _, _| {},
-    );
+    let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
     ws.rim_cands = cands;
     (out.found, out.attempts)
 }
