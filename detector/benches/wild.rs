@@ -10,8 +10,7 @@
 //! [`THREADS`] threads ([`coppertag::DetectorConfig::threads`]), one with
 //! its threads pinned to cores as by default and one with them left to the
 //! system ([`coppertag::DetectorConfig::pin_threads`]), timed in the same
-//! run,
-//! frame by frame in turn, the median, 95th percentile and
+//! run, frame by frame in turn, the median, 95th percentile and
 //! maximum time per frame (each frame's time is its median over [`ROUNDS`]
 //! runs, so one preempted run does not count), the median over frames of
 //! every stage's time (from [`coppertag::Detector::stats`]) and the ratios

@@ -54,6 +54,7 @@ def test_keywords_reach_the_detector() -> None:
         ("max_candidates", 0),
         ("threads", 257),
         ("recover_occluded", 1),
+        ("pin_threads", 1),
         ("min_line_length", 2 ** 70),
     ],
 )

@@ -11,11 +11,12 @@
 //! whom and when.
 //!
 //! Each thread takes the next candidate that the tags found so far would
-//! not skip and that lies in no square being read (see [`Ahead::take`]), as long as fewer than [`AHEAD_PER_THREAD`] per thread are
-//! taken or read from the one the loop is at on (and no more than the
-//! attempts left), reads it and leaves the outcome for the loop. The loop
-//! takes the outcome of each candidate it decodes: ready, or read by
-//! itself if no thread took it; while another thread is reading it, the
+//! not skip and that lies in no square being read (see [`Ahead::take`]),
+//! as long as fewer than [`AHEAD_PER_THREAD`] per thread are taken or read
+//! from the one the loop is at on (and no more than the attempts left),
+//! reads it and leaves the outcome for the loop. The loop takes the
+//! outcome of each candidate it decodes: ready, or read by itself if no
+//! thread took it; while another thread is reading it, the
 //! loop reads ahead too rather than wait. There is no barrier: a thread
 //! waits only when the candidates ahead are all taken, or when the loop
 //! is about to take a ready outcome (which may find a tag that makes it
