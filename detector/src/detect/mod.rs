@@ -560,8 +560,9 @@ fn threshold_bands(
     work
 }
 
-/// The full-resolution second look in one small-tag region `r` of `img`:
-/// stages 1-5 on the region at full resolution, then its rim's candidates
+/// The full-resolution second look in one small-tag region `r` of `img`
+/// whose rim's middle is not flat ([`small::worth_looking`]): stages 1-5
+/// on the region at full resolution, then its rim's candidates
 /// decoded, at most `budget` of them; for a rim of a very small tag where
 /// that read nothing, the same on the region upsampled 2x; where still
 /// nothing read, the full-resolution look's guessed candidates (see
@@ -576,6 +577,9 @@ fn small_region(
     budget: usize,
     ws: &mut Workspace,
 ) -> decoding::Decoded {
+    if !small::worth_looking(img, r) {
+        return decoding::Decoded::default();
+    }
     let view = img.crop(r.x0, r.y0, r.w, r.h);
     let first = small_look(img, &view, r, 1.0, d, budget, ws);
     if !first.found.is_empty() || !first.foreign.is_empty() {

@@ -337,6 +337,26 @@ pub(crate) fn upsample_2x(
     (w2 as u32, h2 as u32)
 }
 
+/// Least spread (max - min grey) of the rim's middle, as a share of the
+/// spread over its whole region, for the region to be looked at at all
+/// ([`worth_looking`]). A tag's cells and centre checker fill the middle
+/// of its disc with dark and light; a solid blob or an empty ring of
+/// clutter, which the rim stage finds as readily, leaves it flat. On the
+/// wild set (3000 frames, 15 600 regions) the regions that read a tag had
+/// a share of 0.17 or more, on its ct8 twin 0.35, on the sigma calibration
+/// set 0.21; under 0.12 lay 30% of the regions that read nothing (4300 on
+/// the wild set, 0.1 ms a frame of the looks' time; 60 of the 22 bench
+/// frames' 292, 0.2 ms a frame). Looking at them costs a segmentation of
+/// the region each.
+const MIN_LOOK_SPREAD: f64 = 0.12;
+
+/// Whether region `r` of `img` is looked at again at full resolution: the
+/// middle of its rim is not flat ([`MIN_LOOK_SPREAD`]).
+pub(crate) fn worth_looking(img: &GrayView<'_>, r: &Region) -> bool {
+    let (middle, all) = spreads(img, r);
+    middle > 0 && f64::from(middle) >= MIN_LOOK_SPREAD * f64::from(all)
+}
+
 /// Whether region `r` of `img` gets the upsampled look: its rim is small
 /// enough ([`UPSAMPLE_BELOW_SIDE_PX`]) and the middle of the rim holds
 /// both dark and light pixels, as a tag's cells and centre checker do,
@@ -347,6 +367,14 @@ pub(crate) fn worth_upsampling(img: &GrayView<'_>, r: &Region) -> bool {
     if r.axis >= DISC_PER_SIDE * UPSAMPLE_BELOW_SIDE_PX {
         return false;
     }
+    let (middle, all) = spreads(img, r);
+    middle > 0 && f64::from(middle) >= MIN_INTERIOR_SPREAD * f64::from(all)
+}
+
+/// The grey-level spreads (max - min) of region `r` of `img`: of the
+/// middle of its rim (within [`INTERIOR_PER_AXIS`] semi-major axes of the
+/// rim's centre) and of the whole region.
+fn spreads(img: &GrayView<'_>, r: &Region) -> (u8, u8) {
     let rad = INTERIOR_PER_AXIS * r.axis;
     let (mut lo, mut hi, mut all_lo, mut all_hi) = (u8::MAX, 0, u8::MAX, 0);
     for y in r.y0..r.y0 + r.h {
@@ -362,8 +390,7 @@ pub(crate) fn worth_upsampling(img: &GrayView<'_>, r: &Region) -> bool {
             }
         }
     }
-    let spread = f64::from(hi.saturating_sub(lo));
-    spread >= MIN_INTERIOR_SPREAD * f64::from(all_hi.saturating_sub(all_lo)) && spread > 0.0
+    (hi.saturating_sub(lo), all_hi.saturating_sub(all_lo))
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -479,6 +506,15 @@ mod tests {
         // A rim of a 40 px data square or larger: the plain look suffices.
         let big = DISC_PER_SIDE * UPSAMPLE_BELOW_SIDE_PX;
         assert!(!worth_upsampling(&cells, &region(big)));
+        // The plain look takes any rim whose middle is not flat, large or
+        // not; a middle whose spread is a fifth of the region's (a faint
+        // or blurred tag) is looked at though not upsampled.
+        assert!(!worth_looking(&solid, &region(14.0)), "a solid blob");
+        assert!(worth_looking(&cells, &region(big)), "a tag-like middle");
+        let faint = disc(&|x, y| if (x / 2 + y / 2) % 2 == 0 { 20 } else { 62 });
+        let faint = GrayView::packed(&faint, 60, 60);
+        assert!(worth_looking(&faint, &region(14.0)));
+        assert!(!worth_upsampling(&faint, &region(14.0)));
     }
 
     #[test]
