@@ -224,7 +224,8 @@ pub struct DetectionStats {
     /// Candidates refined and decoded (the rest were inside a tag already
     /// found or over the cap), both passes.
     pub decode_attempts: usize,
-    /// Regions around small disc rims segmented again at full resolution.
+    /// Regions around small disc rims taken for a second look at full
+    /// resolution, those passed over at once for a flat middle included.
     pub small_regions: usize,
     /// Candidates the rim look predicted from disc rims alone and decoded
     /// (counted in `decode_attempts` too); it stops after
