@@ -693,13 +693,14 @@ fn occluded_geometry_stands(corners: &[[f64; 2]; 4], hidden: [bool; 4]) -> bool 
 /// Largest one-sigma uncertainty (px) the model fit may give each hidden
 /// corner of a nearest-codeword reading with two or more of them
 /// ([`hidden_corners_fitted`]): twice it is the 3 px of a rough corner.
-/// On the wild set, 20 readings of the right id were dropped for two
-/// hidden corners, every corner within 2.9 px of the truth; kept with any
-/// sigma they found 14 more markers there, 7 on the ct8 twin and 6 on the
-/// sigma calibration set, but one of the latter had a hidden corner
-/// 5.5 px off (at a sigma of 5 px). Kept at 1.5 px: 4 and 3 more (none on
-/// the calibration set), none rough, each corner within 2 sigma of the
-/// truth.
+/// On the wild set, 20 readings of the right id were dropped for hidden
+/// corners the quad could not check (two or more, or one off the
+/// parallelogram of the others), every corner within 2.9 px of the truth.
+/// Kept with any sigma, they found 14 more markers there, 7 on the ct8
+/// twin and 6 on the sigma calibration set, but one of the latter had a
+/// hidden corner 5.5 px off (at a sigma of 5 px). Kept as this rule does
+/// (two or more hidden, each within 1.5 px): 4 and 3 more (none on the
+/// calibration set), none rough, each corner within 2 sigma of the truth.
 const HIDDEN_FIT_SIGMA_PX: f64 = 1.5;
 
 /// Whether a reading under an occluder with two or more hidden corners,
