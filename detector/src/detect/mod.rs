@@ -578,7 +578,8 @@ fn small_region(
     budget: usize,
     ws: &mut Workspace,
 ) -> decoding::Decoded {
-    if !small::worth_looking(img, r) {
+    let middle = small::Middle::of(img, r);
+    if !small::worth_looking(middle) {
         return decoding::Decoded::default();
     }
     let view = img.crop(r.x0, r.y0, r.w, r.h);
@@ -598,7 +599,7 @@ fn small_region(
             .filter(|c| c.guessed)
             .filter_map(|c| small::of_rim(c, r, 1.0)),
     );
-    let mut out = small_upsampled(img, r, d, budget, n, ws);
+    let mut out = small_upsampled(img, r, middle, d, budget, n, ws);
     if out.found.is_empty()
         && out.foreign.is_empty()
         && out.attempts < budget
@@ -616,11 +617,12 @@ fn small_region(
 
 /// The upsampled look of [`small_region`] after a full-resolution look
 /// that read nothing in `n` candidates decoded, where the rim is small and
-/// patterned enough for it: what it decoded, its attempts counting the
-/// `n` before it.
+/// its middle (`middle`) patterned enough for it: what it decoded, its
+/// attempts counting the `n` before it.
 fn small_upsampled(
     img: &GrayView<'_>,
     r: &small::Region,
+    middle: small::Middle,
     d: &SmallPass<'_>,
     budget: usize,
     n: usize,
@@ -630,7 +632,8 @@ fn small_upsampled(
         attempts: n,
         ..Default::default()
     };
-    if n >= budget || n > small::MAX_PLAIN_READS_TO_UPSAMPLE || !small::worth_upsampling(img, r) {
+    if n >= budget || n > small::MAX_PLAIN_READS_TO_UPSAMPLE || !small::worth_upsampling(r, middle)
+    {
         return none;
     }
     let Some(t) = r.tight() else {
@@ -964,11 +967,13 @@ impl Detector {
         // Last, the rims no tag was found in, from the rim alone. The rims
         // a reading covers are kept: verification may drop the reading.
         // The rim look on `rims` not in a tag of `found`, within the
-        // decoding attempts left, which it counts.
+        // decoding attempts left, which it counts in `attempts` and in
+        // `rim_decodes`.
         let look = |ws: &mut Workspace,
                     rims: &[ellipses::Ellipse],
                     found: &[decoding::Found],
-                    attempts: &mut usize| {
+                    attempts: &mut usize,
+                    rim_decodes: &mut usize| {
             let budget = p.decoding.max_attempts.saturating_sub(*attempts);
             let (more, n) = rim_look(
                 &img,
@@ -982,13 +987,12 @@ impl Detector {
                 &foreign,
             );
             *attempts += n;
+            *rim_decodes += n;
             more
         };
         let covered = {
             let rims = std::mem::take(&mut ws.rims);
-            let before = attempts;
-            let more = look(ws, &rims, &found, &mut attempts);
-            st.rim_decodes = attempts - before;
+            let more = look(ws, &rims, &found, &mut attempts, &mut st.rim_decodes);
             let covered: Vec<ellipses::Ellipse> = rims
                 .iter()
                 .filter(|e| rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
@@ -1020,9 +1024,7 @@ impl Detector {
             .filter(|e| !rim_inside(e, scale, out.iter().map(|d| &d.corners)))
             .collect();
         if !orphans.is_empty() {
-            let before = attempts;
-            let more = look(ws, &orphans, &[], &mut attempts);
-            st.rim_decodes += attempts - before;
+            let more = look(ws, &orphans, &[], &mut attempts, &mut st.rim_decodes);
             out.extend(decoding::verify_all(
                 &img,
                 decoding::one_per_tag(more),

@@ -350,47 +350,61 @@ pub(crate) fn upsample_2x(
 /// the region each.
 const MIN_LOOK_SPREAD: f64 = 0.12;
 
-/// Whether region `r` of `img` is looked at again at full resolution: the
-/// middle of its rim is not flat ([`MIN_LOOK_SPREAD`]).
-pub(crate) fn worth_looking(img: &GrayView<'_>, r: &Region) -> bool {
-    let (middle, all) = spreads(img, r);
-    middle > 0 && f64::from(middle) >= MIN_LOOK_SPREAD * f64::from(all)
+/// Whether a region whose rim's middle is `m` is looked at again at full
+/// resolution: the middle is not flat ([`MIN_LOOK_SPREAD`]).
+pub(crate) fn worth_looking(m: Middle) -> bool {
+    m.spread_at_least(MIN_LOOK_SPREAD)
 }
 
-/// Whether region `r` of `img` gets the upsampled look: its rim is small
-/// enough ([`UPSAMPLE_BELOW_SIDE_PX`]) and the middle of the rim holds
-/// both dark and light pixels, as a tag's cells and centre checker do,
-/// with a spread of at least [`MIN_INTERIOR_SPREAD`] of the region's. A
-/// solid dark blob or an empty ring of clutter, which the rim stage finds
-/// as readily as a tag's disc, is passed over.
-pub(crate) fn worth_upsampling(img: &GrayView<'_>, r: &Region) -> bool {
-    if r.axis >= DISC_PER_SIDE * UPSAMPLE_BELOW_SIDE_PX {
-        return false;
-    }
-    let (middle, all) = spreads(img, r);
-    middle > 0 && f64::from(middle) >= MIN_INTERIOR_SPREAD * f64::from(all)
+/// Whether region `r`, whose rim's middle is `m`, gets the upsampled look:
+/// its rim is small enough ([`UPSAMPLE_BELOW_SIDE_PX`]) and the middle of
+/// the rim holds both dark and light pixels, as a tag's cells and centre
+/// checker do, with a spread of at least [`MIN_INTERIOR_SPREAD`] of the
+/// region's. A solid dark blob or an empty ring of clutter, which the rim
+/// stage finds as readily as a tag's disc, is passed over.
+pub(crate) fn worth_upsampling(r: &Region, m: Middle) -> bool {
+    r.axis < DISC_PER_SIDE * UPSAMPLE_BELOW_SIDE_PX && m.spread_at_least(MIN_INTERIOR_SPREAD)
 }
 
-/// The grey-level spreads (max - min) of region `r` of `img`: of the
-/// middle of its rim (within [`INTERIOR_PER_AXIS`] semi-major axes of the
-/// rim's centre) and of the whole region.
-fn spreads(img: &GrayView<'_>, r: &Region) -> (u8, u8) {
-    let rad = INTERIOR_PER_AXIS * r.axis;
-    let (mut lo, mut hi, mut all_lo, mut all_hi) = (u8::MAX, 0, u8::MAX, 0);
-    for y in r.y0..r.y0 + r.h {
-        let row = &img.row(y as usize)[r.x0 as usize..(r.x0 + r.w) as usize];
-        let dy = f64::from(y) - r.centre[1];
-        for (x, &v) in (r.x0..).zip(row) {
-            all_lo = all_lo.min(v);
-            all_hi = all_hi.max(v);
-            let dx = f64::from(x) - r.centre[0];
-            if dx * dx + dy * dy <= rad * rad {
-                lo = lo.min(v);
-                hi = hi.max(v);
+/// The grey-level spreads (max - min) of a region: of the middle of its
+/// rim (within [`INTERIOR_PER_AXIS`] semi-major axes of the rim's centre)
+/// and of the whole region. Measured once per region ([`Middle::of`]) for
+/// both looks' tests ([`worth_looking`], [`worth_upsampling`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Middle {
+    spread: u8,
+    region: u8,
+}
+
+impl Middle {
+    /// The spreads of region `r` of `img`.
+    pub(crate) fn of(img: &GrayView<'_>, r: &Region) -> Self {
+        let rad = INTERIOR_PER_AXIS * r.axis;
+        let (mut lo, mut hi, mut all_lo, mut all_hi) = (u8::MAX, 0, u8::MAX, 0);
+        for y in r.y0..r.y0 + r.h {
+            let row = &img.row(y as usize)[r.x0 as usize..(r.x0 + r.w) as usize];
+            let dy = f64::from(y) - r.centre[1];
+            for (x, &v) in (r.x0..).zip(row) {
+                all_lo = all_lo.min(v);
+                all_hi = all_hi.max(v);
+                let dx = f64::from(x) - r.centre[0];
+                if dx * dx + dy * dy <= rad * rad {
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                }
             }
         }
+        Self {
+            spread: hi.saturating_sub(lo),
+            region: all_hi.saturating_sub(all_lo),
+        }
     }
-    (hi.saturating_sub(lo), all_hi.saturating_sub(all_lo))
+
+    /// Whether the middle spreads at all, and by at least `share` of the
+    /// region's spread.
+    fn spread_at_least(self, share: f64) -> bool {
+        self.spread > 0 && f64::from(self.spread) >= share * f64::from(self.region)
+    }
 }
 
 fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
@@ -501,20 +515,22 @@ mod tests {
             GrayView::packed(&solid, 60, 60),
             GrayView::packed(&cells, 60, 60),
         );
-        assert!(!worth_upsampling(&solid, &region(14.0)), "a solid blob");
-        assert!(worth_upsampling(&cells, &region(14.0)), "a tag-like middle");
+        let looked = |img: &GrayView<'_>, r: Region| worth_looking(Middle::of(img, &r));
+        let upsampled = |img: &GrayView<'_>, r: Region| worth_upsampling(&r, Middle::of(img, &r));
+        assert!(!upsampled(&solid, region(14.0)), "a solid blob");
+        assert!(upsampled(&cells, region(14.0)), "a tag-like middle");
         // A rim of a 40 px data square or larger: the plain look suffices.
         let big = DISC_PER_SIDE * UPSAMPLE_BELOW_SIDE_PX;
-        assert!(!worth_upsampling(&cells, &region(big)));
+        assert!(!upsampled(&cells, region(big)));
         // The plain look takes any rim whose middle is not flat, large or
         // not; a middle whose spread is a fifth of the region's (a faint
         // or blurred tag) is looked at though not upsampled.
-        assert!(!worth_looking(&solid, &region(14.0)), "a solid blob");
-        assert!(worth_looking(&cells, &region(big)), "a tag-like middle");
+        assert!(!looked(&solid, region(14.0)), "a solid blob");
+        assert!(looked(&cells, region(big)), "a tag-like middle");
         let faint = disc(&|x, y| if (x / 2 + y / 2) % 2 == 0 { 20 } else { 62 });
         let faint = GrayView::packed(&faint, 60, 60);
-        assert!(worth_looking(&faint, &region(14.0)));
-        assert!(!worth_upsampling(&faint, &region(14.0)));
+        assert!(looked(&faint, region(14.0)));
+        assert!(!upsampled(&faint, region(14.0)));
     }
 
     #[test]
