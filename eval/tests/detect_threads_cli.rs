@@ -3,23 +3,15 @@
 //! misuse refused with exit code 2 before any image is read.
 
 mod common;
-use common::{coppertag, repo};
+use common::{coppertag, repo, succeed};
 
 /// `detect --json` on the golden ct14 tag 1 with `args`, its stdout with
 /// the time per image taken out.
 fn detections(args: &[&str]) -> String {
     let img = repo().join("detector/tests/fixtures/ct14/1.png");
-    let out = coppertag()
-        .arg("detect")
-        .arg(&img)
-        .arg("--json")
-        .args(args)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeed(
+        coppertag().arg("detect").arg(&img).arg("--json").args(args),
+        &format!("{args:?}"),
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     json["detections"].to_string()

@@ -12,7 +12,7 @@ use coppertag_eval::runner::{self, DetectorSpec};
 use coppertag_eval::truth::Dataset;
 
 mod common;
-use common::{coppertag, render_rotated_z, repo};
+use common::{coppertag, render_rotated_z, repo, succeed};
 
 /// A 13-image rotated-z CopperTag dataset, rendered once per test binary.
 fn dataset() -> &'static Path {
@@ -188,16 +188,9 @@ with open(sys.argv[1], "rb") as f:
         n += 1
 print(json.dumps({"schemas": schemas, "topics": topics, "metadata": meta, "detections": n}))
 "#;
-    let out = Command::new(&python)
-        .arg("-c")
-        .arg(script)
-        .arg(&path)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
+    let out = succeed(
+        Command::new(&python).arg("-c").arg(script).arg(&path),
+        "reading our MCAP with the mcap package",
     );
     let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(

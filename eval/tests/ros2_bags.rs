@@ -13,6 +13,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
+mod common;
+use common::succeed;
 use coppertag_eval::pose_error::{angle_between, rotation_of};
 use coppertag_eval::truth::Dataset;
 
@@ -235,16 +237,9 @@ fn write_bag_chunked(
     });
     let desc_path = dir.join(format!("{name}.json"));
     std::fs::write(&desc_path, desc.to_string()).unwrap();
-    let o = Command::new(py)
-        .arg("-c")
-        .arg(WRITER)
-        .arg(&desc_path)
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "bag writer failed: {}",
-        String::from_utf8_lossy(&o.stderr)
+    succeed(
+        Command::new(py).arg("-c").arg(WRITER).arg(&desc_path),
+        "bag writer failed",
     );
     out
 }

@@ -1,11 +1,12 @@
 //! Helpers shared by the eval integration tests: the repository root, the
-//! `coppertag` binary under test, and a small real dataset.
+//! `coppertag` binary under test, a command run to success, and a small
+//! real dataset.
 
 // Each test binary uses its own subset of these.
 #![allow(dead_code)]
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 /// The workspace root (the committed specs live below it).
 pub fn repo() -> PathBuf {
@@ -18,6 +19,18 @@ pub fn repo() -> PathBuf {
 /// The `coppertag` binary built for this test run.
 pub fn coppertag() -> Command {
     Command::new(env!("CARGO_BIN_EXE_coppertag"))
+}
+
+/// Runs `cmd` and asserts it succeeded, the failure naming `what` and
+/// showing the command's standard error; its output.
+pub fn succeed(cmd: &mut Command, what: &str) -> Output {
+    let out = cmd.output().unwrap();
+    assert!(
+        out.status.success(),
+        "{what}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
 }
 
 /// Renders the 13-image rotated-z CopperTag dataset (every 30th image of
