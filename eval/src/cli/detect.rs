@@ -110,7 +110,8 @@ pub struct DetectArgs {
     pub(super) no_small_tags: bool,
 
     /// With --json: add each image's stage times (ms) and counts (borders,
-    /// lines, corners, rims, candidates, decodes, small-tag regions, decodes of the rim look).
+    /// lines, corners, rims, candidates, decodes, small-tag regions,
+    /// decodes of the rim look).
     #[arg(long, requires = "json")]
     pub(super) stats: bool,
 
