@@ -281,6 +281,7 @@ pub fn decode_quad_with(
         nearest: true,
         limit: Some(family.code().parity() / 2),
         smeared: true,
+        promising: Promising::Align,
     };
     decode_quad_by(img, family, corners, params, accept)
 }
@@ -305,6 +306,42 @@ pub(crate) struct Accept {
     /// [`within_limit`]); a reading over it counts as none, and the next
     /// ways of reading the grid are tried.
     pub limit: Option<usize>,
+    /// What a likelihood fit that leads without reading clearly leads to.
+    pub promising: Promising,
+}
+
+/// What a likelihood fit whose best id leads without reading clearly
+/// ([`LikelyFit::promising`]) leads to in [`read_blurred`]. Aligning the
+/// quad to that codeword ([`align`]) moves its corners by up to
+/// [`ALIGN_MAX_MOVE_PX`] to where the cell centres fit it best; when the
+/// grid there still does not read, the smear reading ([`read_smeared`])
+/// is otherwise not tried, though a tag blurred by motion often has a
+/// round fit that leads without reading.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Promising {
+    /// The quad aligned and read again; no likelihood reading when that
+    /// does not read. For a candidate's first reading: trying the smear
+    /// reading after a failed alignment there too found 46 more of the
+    /// wild set's markers and lost 2, but moved 6 others' corners
+    /// (wild and calibration sets) by 0.5 px or more for the worse, to
+    /// up to 1.4 px off at a claimed sigma of 0.33 px: a worse quad's
+    /// reading now came first.
+    Align,
+    /// Aligned and read again, then the smear reading if that does not
+    /// read: for the verify stage's reading at the fitted corners, which
+    /// only confirms the id where the model fit has placed the quad. On
+    /// the wild set this confirmed readings of 27 more markers (none
+    /// lost; one other's corners moved for the worse, to 1.2 px off), and
+    /// 10 more on the sigma calibration set.
+    AlignOrSmear,
+    /// The smear reading alone, no alignment: for the rim look's readings
+    /// at small moves of the aligned print's quad and on the refined one,
+    /// whose alignments would repeat the aligned print's own. On the wild
+    /// set those were 60% of the rim look's grid fits (60 000) and read
+    /// 4 markers; with the smear reading in their place the rim look read
+    /// 8 more than with the verify stage's change alone (2 more on the
+    /// calibration set), and none fewer.
+    Smear,
 }
 
 /// Whether a reading's corrections fit a family's limit: at most `limit`
@@ -394,18 +431,8 @@ pub(crate) fn decode_quad_by(
     // that were no tag); last of all, cell by cell, for a tag whose hidden
     // cells read confidently wrong (an ink-dark or paper-white occluder).
     let book = family.codebook();
-    let blurred = book.and_then(|book| {
-        read_blurred(
-            img,
-            family,
-            book,
-            &y,
-            corners,
-            black,
-            contrast,
-            accept.smeared,
-        )
-    });
+    let blurred =
+        book.and_then(|book| read_blurred(img, family, book, &y, corners, black, contrast, accept));
     // A faint reading (see `QuadReading::faint`) comes after every other:
     // it needs the detector's alignment of the print to stand, which the
     // others do not.
@@ -459,9 +486,10 @@ fn codeword_reading(
 /// The likelihood reading of a tag ([`read_likely`]) whose cells'
 /// whiteness through `corners` is `y` (measured `black` level and
 /// `contrast`): when one id leads without reading clearly, the quad is
-/// aligned to that codeword ([`align`]) and read again. When no round
-/// template fits, the codewords are tried as a motion smear shows them
-/// ([`read_smeared`]) if `smeared` readings are accepted.
+/// aligned to that codeword ([`align`]) and read again, as
+/// `accept.promising` says. When no round template fits, the codewords are
+/// tried as a motion smear shows them ([`read_smeared`]) if smeared
+/// readings are accepted.
 #[allow(clippy::too_many_arguments)]
 fn read_blurred(
     img: &GrayView<'_>,
@@ -471,7 +499,7 @@ fn read_blurred(
     corners: &[[f64; 2]; 4],
     black: f64,
     contrast: f64,
-    smeared: bool,
+    accept: Accept,
 ) -> Option<QuadReading> {
     let n = family.grid();
     let round = read_likely(book, y);
@@ -482,20 +510,24 @@ fn read_blurred(
         let again = read_likely(book, &y)?;
         again.reads().then_some((again, y, aligned))
     };
+    // A smear along one direction fits no round template clearly.
+    // (Tried only on grids that look blurred ([`blurred`]), with the
+    // direction's bound at 0.55, it read 25 fewer of the wild set's tags,
+    // for no time the wild set's timings could tell apart.)
+    let smear = || {
+        let fit = read_smeared(book, y).filter(LikelyFit::reads)?;
+        Some((fit, y.to_vec(), *corners, Method::Smear))
+    };
     let (fit, y, corners, method) = match round {
         Some(fit) if fit.reads() => (fit, y.to_vec(), *corners, Method::Blur),
-        Some(fit) if fit.promising() => {
-            let (fit, y, corners) = aligned(&fit)?;
-            (fit, y, corners, Method::Blur)
+        Some(fit) if fit.promising() && accept.promising != Promising::Smear => {
+            match aligned(&fit) {
+                Some((fit, y, corners)) => (fit, y, corners, Method::Blur),
+                None if accept.promising == Promising::AlignOrSmear && accept.smeared => smear()?,
+                None => return None,
+            }
         }
-        // A smear along one direction fits no round template clearly.
-        // (Tried only on grids that look blurred ([`blurred`]), with the
-        // direction's bound at 0.55, it read 25 fewer of the wild set's
-        // tags, for no time the wild set's timings could tell apart.)
-        _ if smeared => {
-            let fit = read_smeared(book, y).filter(LikelyFit::reads)?;
-            (fit, y.to_vec(), *corners, Method::Smear)
-        }
+        _ if accept.smeared => smear()?,
         _ => return None,
     };
     if contradicts(book, &y, fit.id, fit.rotation) {

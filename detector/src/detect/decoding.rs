@@ -21,7 +21,7 @@ use super::reject::plainly_not_a_tag;
 use super::rim;
 use super::verify::{verify, Confirming, Verdict, Verified};
 use super::Detection;
-use crate::decode::{decode_quad_by, frame_misread_at_corners, Accept, DecodeParams};
+use crate::decode::{decode_quad_by, frame_misread_at_corners, Accept, DecodeParams, Promising};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::homography::Homography;
@@ -228,12 +228,20 @@ fn quad_reading(
     targets: &[Target],
     p: &DecodingParams,
 ) -> Option<Reading> {
-    let own = read(img, cand, q, centre, targets, &p.decode, shown)
-        .filter(|d| {
-            !d.occluded
-                || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
-        })
-        .and_then(|d| unless_faint(img, d, targets, p));
+    let own = read(
+        img,
+        cand,
+        q,
+        centre,
+        targets,
+        &p.decode,
+        shown,
+        Promising::Align,
+    )
+    .filter(|d| {
+        !d.occluded || target_of(targets, d).is_some_and(|t| occluded_reading_stands(img, d, t, p))
+    })
+    .and_then(|d| unless_faint(img, d, targets, p));
     own.map(|det| Reading {
         det,
         outline: false,
@@ -254,6 +262,7 @@ fn quad_reading(
             targets,
             &p.decode,
             shown_grid(img, &inner),
+            Promising::Align,
         )
         .filter(|d| {
             if d.occluded {
@@ -316,12 +325,16 @@ fn rim_attempt(
 ) -> Outcome {
     // The reading of the cells at `q`, if it stands; `aligned`, the
     // aligned print's corners it reports (none: the fit's); `shown`, the
-    // grid the square shows (`pitch::shown_grid`).
-    let on = |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown| {
-        read(img, cand, q, centre, targets, &p.decode, shown)
-            .filter(|d| occluded || !d.occluded)
-            .and_then(|d| rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned))
-    };
+    // grid the square shows (`pitch::shown_grid`); `promising`, what a
+    // leading codeword leads to. Only the aligned print's reading aligns
+    // the quad to it: the others' quads are small moves of that quad or
+    // the refined one (`Promising::Smear`).
+    let on =
+        |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown, promising| {
+            read(img, cand, q, centre, targets, &p.decode, shown, promising)
+                .filter(|d| occluded || !d.occluded)
+                .and_then(|d| rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned))
+        };
     // The moves read as the grid their square shows: they move it by a
     // third of a pixel.
     let jittered = |q: &[[f64; 2]; 4], shown| {
@@ -333,7 +346,7 @@ fn rim_attempt(
                     c[1] + k * (p[1] - c[1]) + d[1],
                 ]
             });
-            on(&m, Some(q), false, shown)
+            on(&m, Some(q), false, shown, Promising::Smear)
         })
     };
     // The moves only where a third of a pixel matters: cells of at most
@@ -350,7 +363,7 @@ fn rim_attempt(
     }
     let reading = aligned
         .and_then(|(q, shown)| {
-            on(&q, Some(&q), true, shown).or_else(|| {
+            on(&q, Some(&q), true, shown, Promising::Align).or_else(|| {
                 (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
                     .then(|| jittered(&q, shown))
                     .flatten()
@@ -358,7 +371,8 @@ fn rim_attempt(
         })
         .or_else(|| {
             let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-            on(&q, None, false, shown_grid(img, &q)).and_then(|d| unless_faint(img, d, targets, p))
+            on(&q, None, false, shown_grid(img, &q), Promising::Smear)
+                .and_then(|d| unless_faint(img, d, targets, p))
         })
         .map(|det| Reading {
             det,
@@ -896,7 +910,8 @@ fn finest_grid(p: &RefineParams) -> usize {
 /// fewest corrections, the first family on a tie. `centre` (the quad's
 /// centroid) stands in for the tag centre if the homography cannot map it.
 /// `shown`: the grid the square shows ([`shown_grid`]), whose families
-/// alone it is read as.
+/// alone it is read as; `promising`, what a likelihood fit that leads
+/// without reading leads to.
 #[allow(clippy::too_many_arguments)]
 fn read(
     img: &GrayView<'_>,
@@ -906,6 +921,7 @@ fn read(
     targets: &[Target],
     params: &DecodeParams,
     shown: Option<usize>,
+    promising: Promising,
 ) -> Option<Detection> {
     let mut best: Option<Detection> = None;
     for t in targets {
@@ -925,6 +941,7 @@ fn read(
             nearest: true,
             limit: Some(t.max_corrected),
             smeared: !cand.estimated.iter().any(|&e| e),
+            promising,
         };
         let Some(r) = decode_quad_by(img, &t.family, q, params, accept) else {
             continue;

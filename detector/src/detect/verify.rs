@@ -37,7 +37,7 @@
 //!    occluder's edges (on the wild set, readings with every corner within
 //!    0.2 px of the truth were fitted 4-18 px away and rejected).
 
-use crate::decode::{decode_quad_by, Accept, DecodeParams};
+use crate::decode::{decode_quad_by, Accept, DecodeParams, Promising};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
@@ -505,6 +505,7 @@ fn check(
         nearest: kind.nearest,
         limit: None,
         smeared: true,
+        promising: Promising::AlignOrSmear,
     };
     match decode_quad_by(img, family, &corners, decode, accept) {
         Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
