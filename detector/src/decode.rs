@@ -254,8 +254,10 @@ impl Default for DecodeParams {
 /// of that order). Returns `None` when nothing decodes unambiguously.
 ///
 /// The corners returned are the same points reordered so that corner 0 is
-/// the tag's physical top-left corner. `img` is an `&image::GrayImage` or a
-/// [`GrayView`] of a borrowed buffer.
+/// the tag's physical top-left corner (a likelihood reading of a blurred
+/// tag may first move them, by up to 1.5 px, to where the cells fit the
+/// codeword best). `img` is an `&image::GrayImage` or a [`GrayView`] of a
+/// borrowed buffer.
 pub fn decode_quad<'a>(
     img: impl Into<GrayView<'a>>,
     family: &Family,
@@ -270,7 +272,10 @@ pub fn decode_quad<'a>(
 /// capacity (ct14: 9 symbols; an erased symbol counts half, and at most
 /// that many may be erased): a grid with more of its symbols erased reads
 /// as some id whatever it shows. Over that, the grid's other readings are
-/// tried.
+/// tried. The corners are taken as given, as the detector's verify stage
+/// takes its fitted ones: a likelihood fit that leads without reading is
+/// aligned to, and where that does not read, the grid is read as smeared
+/// by motion.
 pub fn decode_quad_with(
     img: &GrayView<'_>,
     family: &Family,
@@ -281,7 +286,7 @@ pub fn decode_quad_with(
         nearest: true,
         limit: Some(family.code().parity() / 2),
         smeared: true,
-        promising: Promising::Align,
+        promising: Promising::AlignOrSmear,
     };
     decode_quad_by(img, family, corners, params, accept)
 }
