@@ -316,28 +316,29 @@ pub(crate) struct Accept {
 }
 
 /// What a likelihood fit whose best id leads without reading clearly
-/// ([`LikelyFit::promising`]) leads to in [`read_blurred`]. Aligning the
-/// quad to that codeword ([`align`]) moves its corners by up to
-/// [`ALIGN_MAX_MOVE_PX`] to where the cell centres fit it best; when the
-/// grid there still does not read, the smear reading ([`read_smeared`])
-/// is otherwise not tried, though a tag blurred by motion often has a
-/// round fit that leads without reading.
+/// ([`LikelyFit::promising`]) leads to in [`read_blurred`]: the quad
+/// aligned to that codeword ([`align`]: its corners moved by up to
+/// [`ALIGN_MAX_MOVE_PX`] to where the cell centres fit it best) and read
+/// again, the grid read as smeared by motion ([`read_smeared`]), or the
+/// first and then the second. A tag smeared by motion often has a round
+/// fit that leads without reading, and no alignment makes it read.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub(crate) enum Promising {
     /// The quad aligned and read again; no likelihood reading when that
-    /// does not read. For a candidate's first reading: trying the smear
-    /// reading after a failed alignment there too found 46 more of the
-    /// wild set's markers and lost 2, but moved 6 others' corners
-    /// (wild and calibration sets) by 0.5 px or more for the worse, to
-    /// up to 1.4 px off at a claimed sigma of 0.33 px: a worse quad's
-    /// reading now came first.
+    /// does not read. For a candidate's first reading (and the rim look's
+    /// reading of its aligned print): trying the smear reading after a
+    /// failed alignment there too found 46 more of the wild set's markers
+    /// and lost 2, but moved 6 others' corners (wild and calibration sets)
+    /// by 0.5 px or more for the worse, to up to 1.4 px off at a claimed
+    /// sigma of 0.33 px.
     Align,
     /// Aligned and read again, then the smear reading if that does not
     /// read: for the verify stage's reading at the fitted corners, which
     /// only confirms the id where the model fit has placed the quad. On
     /// the wild set this confirmed readings of 27 more markers (none
     /// lost; one other's corners moved for the worse, to 1.2 px off), and
-    /// 10 more on the sigma calibration set.
+    /// 10 more on the sigma calibration set. Also [`decode_quad_with`]'s,
+    /// which takes the corners it is given as they are.
     AlignOrSmear,
     /// The smear reading alone, no alignment: for the rim look's readings
     /// at small moves of the aligned print's quad and on the refined one,
