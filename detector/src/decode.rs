@@ -268,10 +268,13 @@ pub fn decode_quad<'a>(
 
 /// [`decode_quad`] with explicit thresholds.
 ///
-/// A reading through the Reed-Solomon code is accepted within the code's
+/// A reading through the Reed-Solomon code is accepted within the
+/// family's default limit ([`Family::default_correction_limit`], the
+/// detector's too): for ct8, 3 of the 5 symbols its short code corrects;
+/// for ct14 and any family made with [`Family::from_spec`], the code's
 /// capacity (ct14: 9 symbols; an erased symbol counts half, and at most
-/// that many may be erased): a grid with more of its symbols erased reads
-/// as some id whatever it shows. Over that, the grid's other readings are
+/// that many may be erased: a grid with more of its symbols erased reads
+/// as some id whatever it shows). Over it, the grid's other readings are
 /// tried. The corners are taken as given, as the detector's verify stage
 /// takes its fitted ones: a likelihood fit that leads without reading is
 /// aligned to, and where that does not read, the grid is read as smeared
@@ -284,7 +287,7 @@ pub fn decode_quad_with(
 ) -> Option<QuadReading> {
     let accept = Accept {
         nearest: true,
-        limit: Some(family.code().parity() / 2),
+        limit: Some(family.default_correction_limit()),
         smeared: true,
         promising: Promising::AlignOrSmear,
     };
@@ -890,7 +893,30 @@ fn reading_to_quad(
 mod tests {
     use super::*;
     use crate::grid_code::encode_cells;
-    use crate::test_images::{tag_image, INK};
+    use crate::test_images::{cells_image, tag_image, INK};
+
+    /// `decode_quad` trusts a reading by the code with as many corrected
+    /// symbols as the detector does by default
+    /// ([`Family::default_correction_limit`]): ct8 with 3 symbols misread
+    /// reads, with 4 (within its code's capacity of 5) it does not; ct14
+    /// with 4 reads.
+    #[test]
+    fn decode_quad_corrects_as_many_symbols_as_the_detector() {
+        let read = |fam: &Family, misread: usize| {
+            let id = fam.min_id() + 42;
+            let mut cells = encode_cells(fam, id).unwrap();
+            let bits = fam.code().symbol_bits() as usize;
+            for s in 0..misread {
+                let c = fam.code_cells()[s * bits];
+                cells[c] = !cells[c];
+            }
+            let (img, q) = cells_image(fam.grid(), &cells, 96.0, [160.0, 160.0], 0.3);
+            decode_quad(&img, fam, &q).map(|r| (r.id == id, r.corrected))
+        };
+        assert_eq!(read(Family::ct8(), 3), Some((true, 3)));
+        assert_eq!(read(Family::ct8(), 4), None);
+        assert_eq!(read(Family::ct14(), 4), Some((true, 4)));
+    }
 
     /// The grid of a shape that is no tag (a margin and a frame around a
     /// flat grey inside) is refused as flat before any reading, while a

@@ -37,8 +37,18 @@ pub(crate) fn family_tag_image(
     c: [f64; 2],
     turn: f64,
 ) -> (GrayImage, [[f64; 2]; 4]) {
-    let n = fam.grid();
-    let cells = encode_cells(fam, id).unwrap();
+    cells_image(fam.grid(), &encode_cells(fam, id).unwrap(), side, c, turn)
+}
+
+/// [`tag_image`] of a tag whose `n` x `n` cells are `cells` (row-major,
+/// true for black), whatever code they hold.
+pub(crate) fn cells_image(
+    n: usize,
+    cells: &[bool],
+    side: f64,
+    c: [f64; 2],
+    turn: f64,
+) -> (GrayImage, [[f64; 2]; 4]) {
     let (cs, sn) = (turn.cos(), turn.sin());
     let img = GrayImage::from_fn(320, 320, |x, y| {
         let (dx, dy) = (f64::from(x) - c[0], f64::from(y) - c[1]);
@@ -48,7 +58,7 @@ pub(crate) fn family_tag_image(
         } else if u.abs().max(v.abs()) > 0.5 {
             true
         } else {
-            data_black(&cells, n, u, v)
+            data_black(cells, n, u, v)
         };
         image::Luma([if black { INK } else { PAGE }])
     });

@@ -5,12 +5,8 @@
 use serde::{Deserialize, Serialize};
 
 use crate::family::Family;
+pub use crate::family::CT8_MAX_CORRECTED;
 use crate::{Error, Result};
-
-/// Default most corrections accepted on a ct8 reading: 3 of the 5 its
-/// RS(15,5) code corrects. ct8's short code is the weak point for false
-/// reads in clutter; ct14 keeps all 9 of its RS(20,2).
-pub const CT8_MAX_CORRECTED: usize = 3;
 
 /// One family the detector decodes, and how many Reed-Solomon symbol
 /// corrections a reading of it may need.
