@@ -367,6 +367,9 @@ pub(crate) struct Verified {
     pub sigma: [f64; 4],
     /// Tag units to pixels.
     pub homography: Homography,
+    /// Confirmed by a reading as smeared by motion (see
+    /// `decoding::SMEAR_SIGMA_OF_SIDE`).
+    pub smeared: bool,
 }
 
 /// What verification concluded about a reading.
@@ -451,6 +454,7 @@ pub(crate) fn verify(
         unsupported: fit.unsupported,
         sigma: fit.sigma,
         homography: fit.h,
+        smeared: false,
     });
     // The free fit may have crept off along a direction the visible
     // edges leave free: once more, held near the reading's geometry.
@@ -514,6 +518,7 @@ fn check(
                 unsupported,
                 sigma,
                 homography: h,
+                smeared: r.smeared,
             })
         }
         _ => Verdict::Contradicted(None),
