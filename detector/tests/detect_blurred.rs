@@ -171,23 +171,17 @@ fn smeared_tags_are_read_where_alignment_does_not_help() {
 /// nowhere but on the corners of its print aligned to the image.
 #[test]
 fn decode_quad_reads_smeared_tags_at_their_true_corners() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wild");
-    let list = std::fs::read_to_string(dir.join("smear-confirm-crops.csv")).unwrap();
     let fam = coppertag::Family::by_name("ct14").unwrap();
     let mut read = Vec::new();
-    for line in list.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        let v: Vec<f64> = f[2..10].iter().map(|x| x.parse().unwrap()).collect();
-        let truth = [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]], [v[6], v[7]]];
-        let img = image::open(dir.join(f[0])).unwrap().to_luma8();
-        if let Some(r) = coppertag::decode_quad(&img, fam, &truth) {
-            assert_eq!(r.id.to_string(), f[1], "{}: a wrong id", f[0]);
-            assert!(r.smeared, "{}: not read as smeared: {r:?}", f[0]);
-            read.push(f[0]);
+    for c in crops("smear-confirm-crops.csv") {
+        if let Some(r) = coppertag::decode_quad(&c.img, fam, &c.truth) {
+            assert_eq!(r.id, c.id, "{}: a wrong id", c.file);
+            assert!(r.smeared, "{}: not read as smeared: {r:?}", c.file);
+            read.push(c.file);
         }
     }
     assert_eq!(read.len(), 6, "read: {read:?}");
-    assert!(!read.contains(&"crop-000099-0.png"));
+    assert!(!read.iter().any(|f| f == "crop-000099-0.png"));
 }
 
 /// Six tags of the wild set smeared by motion (4.2-5.8 px), cut from its
@@ -200,18 +194,10 @@ fn decode_quad_reads_smeared_tags_at_their_true_corners() {
 /// within 2 px.
 #[test]
 fn corners_confirmed_as_smeared_are_not_claimed_too_surely() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wild");
-    let list = std::fs::read_to_string(dir.join("smear-sigma-crops.csv")).unwrap();
     let found = crops_found("smear-sigma-crops.csv", 2.0);
     assert_eq!(found.len(), 6);
     let mut within = 0;
-    for (d, line) in found.iter().zip(list.lines().skip(1)) {
-        let v: Vec<f64> = line
-            .split(',')
-            .skip(2)
-            .map(|x| x.parse().unwrap())
-            .collect();
-        let truth = [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]], [v[6], v[7]]];
+    for (d, c) in found.iter().zip(crops("smear-sigma-crops.csv")) {
         let sigma = d.corner_sigma.expect("fitted");
         let side = (0..4)
             .map(|k| {
@@ -221,7 +207,7 @@ fn corners_confirmed_as_smeared_are_not_claimed_too_surely() {
             .sum::<f64>()
             / 4.0;
         assert!(sigma.iter().all(|&s| s >= 0.02 * side), "{d:?}");
-        within += corner_errors(&d.corners, &truth)
+        within += corner_errors(&d.corners, &c.truth)
             .iter()
             .zip(sigma)
             .filter(|(e, s)| **e <= 2.0 * s)

@@ -577,28 +577,50 @@ pub fn vga_scene(
     )
 }
 
-/// Runs the detector on each crop of `fixtures/wild/<list>` and checks
-/// that it finds exactly that crop's tag, every corner within `max_err` px
-/// of the truth; returns the detections.
-pub fn crops_found(list: &str, max_err: f64) -> Vec<coppertag::Detection> {
+/// One crop of a `fixtures/wild/*-crops.csv` list: its image, the id of
+/// the tag in it and the tag's true corners (TL, BL, BR, TR, the crop's
+/// pixel-centre coordinates).
+pub struct Crop {
+    pub file: String,
+    pub img: image::GrayImage,
+    pub id: u64,
+    pub truth: [[f64; 2]; 4],
+}
+
+/// The crops of `fixtures/wild/<list>`, in the list's order.
+pub fn crops(list: &str) -> Vec<Crop> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures/wild");
     let list = std::fs::read_to_string(dir.join(list)).unwrap();
+    list.lines()
+        .skip(1)
+        .map(|line| {
+            let f: Vec<&str> = line.split(',').collect();
+            let v: Vec<f64> = f[2..10].iter().map(|x| x.parse().unwrap()).collect();
+            Crop {
+                file: f[0].to_string(),
+                img: image::open(dir.join(f[0])).unwrap().to_luma8(),
+                id: f[1].parse().unwrap(),
+                truth: [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]], [v[6], v[7]]],
+            }
+        })
+        .collect()
+}
+
+/// Runs the detector on each crop of `fixtures/wild/<list>` ([`crops`])
+/// and checks that it finds exactly that crop's tag, every corner within
+/// `max_err` px of the truth; returns the detections.
+pub fn crops_found(list: &str, max_err: f64) -> Vec<coppertag::Detection> {
     let mut det = coppertag::Detector::new(coppertag::DetectorConfig::default()).unwrap();
     let mut found = Vec::new();
-    for line in list.lines().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        let id: u64 = f[1].parse().unwrap();
-        let v: Vec<f64> = f[2..10].iter().map(|x| x.parse().unwrap()).collect();
-        let truth = [[v[0], v[1]], [v[2], v[3]], [v[4], v[5]], [v[6], v[7]]];
-        let img = image::open(dir.join(f[0])).unwrap().to_luma8();
-        let out = det.detect(&img);
-        assert_eq!(out.len(), 1, "{}: {out:?}", f[0]);
+    for c in crops(list) {
+        let out = det.detect(&c.img);
+        assert_eq!(out.len(), 1, "{}: {out:?}", c.file);
         let d = &out[0];
-        assert_eq!(d.id, id, "{}", f[0]);
-        let err = corner_errors(&d.corners, &truth)
+        assert_eq!(d.id, c.id, "{}", c.file);
+        let err = corner_errors(&d.corners, &c.truth)
             .into_iter()
             .fold(0.0, f64::max);
-        assert!(err <= max_err, "{}: a corner {err:.2} px off", f[0]);
+        assert!(err <= max_err, "{}: a corner {err:.2} px off", c.file);
         found.push(d.clone());
     }
     found
