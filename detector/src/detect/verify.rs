@@ -93,7 +93,7 @@ const MIN_SHIFT_CELL_PX: f64 = 1.8;
 /// went farther (the most, estimated corners, 0.33 to 1.86 px and 0.08 to
 /// 1.16 px). A floor on the cell size changed nothing down to 1 px and
 /// found fewer above it (at 1.5 px, 3 fewer wild markers; at 2 px, 20).
-const MIN_CELL_EDGE_PX: f64 = 2.5;
+pub(crate) const MIN_CELL_EDGE_PX: f64 = 2.5;
 
 /// Fewest edge points the fit's first round must measure on each side of
 /// the data square for the sides to be fitted alone; with fewer on some
