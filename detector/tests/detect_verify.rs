@@ -420,12 +420,13 @@ fn tags_with_a_hidden_side_are_fitted_by_their_cells() {
 /// (`fixtures/wild/fragile-fit-crops.csv`, 19-27 px, cells of 1.2-1.7 px),
 /// read by the code with 5-7 symbols corrected through quads within
 /// 0.15 px of the truth. Their cells are too small for the model fit to
-/// measure, and the fit of the sides alone ran 1-9.5 px off along an
+/// measure, and the fit of their sides ran 1-9.5 px off along an
 /// occluder's edge, read nothing there and dropped them. A reading that
-/// stands without a fit now stands against such a fit too, as unfit: each
-/// is found, every corner within 0.2 px, with no sigma.
+/// stands without a fit now stands against such a fit too, as unfit
+/// (`decoding::small_cells`): each is found, every corner within 0.2 px,
+/// with no sigma.
 #[test]
-fn small_code_readings_stand_against_a_fit_of_their_sides_alone() {
+fn small_code_readings_stand_against_a_fit_of_their_sides() {
     let found = crops_found("fragile-fit-crops.csv", 0.2);
     assert_eq!(found.len(), 5);
     for d in &found {

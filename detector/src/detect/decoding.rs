@@ -1225,28 +1225,28 @@ fn verify_one(
         }
         // A likelihood reading never stands without the fit.
         Verdict::Unfit if stands_unfit(&d, t) => Some(d),
-        Verdict::Contradicted(_) if stands_unfit(&d, t) && fit_of_sides_alone(&d, t) => Some(d),
+        Verdict::Contradicted(_) if stands_unfit(&d, t) && small_cells(&d, t) => Some(d),
         Verdict::Unfit | Verdict::Contradicted(_) => None,
     }
 }
 
-/// Whether the model fit of reading `d` of target `t` measured the data
-/// square's sides alone, its cells being too small for their edges
-/// ([`verify::MIN_CELL_EDGE_PX`]): such a fit contradicting a reading that
-/// stands without a fit ([`stands_unfit`]) leaves it standing, as unfit.
+/// Whether reading `d` of target `t` has cells under
+/// [`verify::MIN_CELL_EDGE_PX`], too small for the model fit to measure
+/// their edges unless a side hides: such a fit stands on the sides, and
+/// one that contradicts a reading that stands without a fit
+/// ([`stands_unfit`]) leaves it standing, as unfit.
 ///
 /// Why: on a tag this small an occluder's edge beside a side, or a
-/// stretch of a side under it, pulls the fit of the sides off, and its
-/// geometry then reads nothing. On the wild set 9 readings of tags of
-/// 19-34 px under occluders, with 0-7 symbols corrected, were dropped so,
-/// their fits 1.0-9.5 px off their corners; their corners were right (7
-/// within 0.11 px of the truth, the other two 1.3 px off at a measured
-/// corner and 2.1 px at an estimated one).
-/// Kept, they add no rough detection and no wrong id on the wild, the
-/// calibration or the ct8 sets, nor a false positive. On larger tags the
-/// fit, with the cell edges, is the surer of the two, and contradicting
-/// still drops the reading.
-fn fit_of_sides_alone(d: &Detection, t: &Target) -> bool {
+/// stretch of a side under it, pulls the fit off, and its geometry then
+/// reads nothing. On the wild set 9 readings of tags of 19-34 px under
+/// occluders, with 0-7 symbols corrected, were dropped so, their fits
+/// 1.0-9.5 px off their corners; their corners were right (7 within
+/// 0.11 px of the truth, the other two 1.3 px off at a measured corner and
+/// 2.1 px at an estimated one). Kept, they add no rough detection and no
+/// wrong id on the wild, the calibration or the ct8 sets, nor a false
+/// positive. On larger tags the fit, with the cell edges, is the surer of
+/// the two, and contradicting still drops the reading.
+fn small_cells(d: &Detection, t: &Target) -> bool {
     let cell = mean_side(&d.corners) / (t.family.grid() + MARGIN_CELLS) as f64;
     cell < verify::MIN_CELL_EDGE_PX
 }
