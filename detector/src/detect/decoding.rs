@@ -1247,8 +1247,7 @@ fn verify_one(
 /// positive. On larger tags the fit, with the cell edges, is the surer of
 /// the two, and contradicting still drops the reading.
 fn small_cells(d: &Detection, t: &Target) -> bool {
-    let cell = mean_side(&d.corners) / (t.family.grid() + MARGIN_CELLS) as f64;
-    cell < verify::MIN_CELL_EDGE_PX
+    verify::cell_px(&d.corners, t.family.grid()) < verify::MIN_CELL_EDGE_PX
 }
 
 /// Whether reading `d` of target `t` stands when its fit cannot be made:

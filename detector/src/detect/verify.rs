@@ -46,6 +46,7 @@ use crate::math::{centroid, dot, mean_side, norm, sample_bilinear, sample_profil
 use crate::view::GrayView;
 
 use super::edge_bias::{self, BlurBias, Ruler, GAUSS_QUARTILE_SPAN};
+use super::refine::MARGIN_CELLS;
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
@@ -103,6 +104,13 @@ pub(crate) const MIN_CELL_EDGE_PX: f64 = 2.5;
 /// detections under triangles rough (an estimated corner 3.1 and 3.8 px
 /// off, moved there by the cells' fit); 12, more rough still.
 const MIN_SIDE_POINTS: usize = 4;
+
+/// Cell size (px) of a data square with corners `corners` and a grid of
+/// `grid` cells a side (its one-cell margin included), the size the
+/// thresholds above are in.
+pub(crate) fn cell_px(corners: &[[f64; 2]; 4], grid: usize) -> f64 {
+    mean_side(corners) / (grid + MARGIN_CELLS) as f64
+}
 
 /// Profile half-window across an edge: this fraction of a cell, ...
 const WINDOW_CELLS: f64 = 0.8;
@@ -446,7 +454,7 @@ pub(crate) fn verify(
     let Some(h0) = Homography::from_points(&CORNERS, corners) else {
         return Verdict::Unfit;
     };
-    let cell = mean_side(corners) / (model.grid as f64 + 2.0);
+    let cell = cell_px(corners, model.grid);
     // A clean reading has every cell right already: no shift can win
     // cells, so the search (most of this stage's time) is skipped.
     let (h1, shifted) = if corrected > 0 && cell > MIN_SHIFT_CELL_PX {
@@ -478,15 +486,10 @@ pub(crate) fn verify(
         fit.unsupported,
         fit.sigma,
     );
-    if second_try {
-        // A second try that contradicts the reading weighs no more than the
-        // failed first one: the reading stands or falls as unfit.
-        return match verdict {
-            Verdict::Contradicted(_) => Verdict::Unfit,
-            v => v,
-        };
-    }
-    if !held || !matches!(verdict, Verdict::Contradicted(_)) {
+    // A second try gets no held fit: a reading it contradicts stands or
+    // falls as one its fit contradicts on a tag whose cells are too small
+    // for their edges (`decoding::small_cells`), as if unfit.
+    if second_try || !held || !matches!(verdict, Verdict::Contradicted(_)) {
         return verdict;
     }
     let free = map4(&fit.h).map(|corners| Verified {
