@@ -244,21 +244,26 @@ fn grey_triangles(side: std::ops::Range<f64>, seed: u64) -> usize {
 /// benchmark's main subset) traded scenes 3 and 18 for scene 32 (13), and
 /// no longer holding readings near the code's limit to their own geometry
 /// (a wild-set reading was held 15 px off; see `verify::verify`) lost two
-/// more whose held fits were right (11).
+/// more whose held fits were right (11). Readings with two or three hidden
+/// corners that the fit places surely, taken as a last resort
+/// (`decoding::Decoded::last_resort`), found 26; without their bound on
+/// the estimated corners' sigma (`decoding::LAST_RESORT_SIGMA_PX`), one of
+/// them (scene 16) had a hidden corner 3.1 px off at a sigma of 1.3 px.
 #[test]
 fn small_tags_under_a_grey_triangle_are_found() {
     let found = grey_triangles(30.0..44.0, 23);
-    assert!(found >= 11, "only {found} of 40 found");
+    assert!(found >= 26, "only {found} of 40 found");
 }
 
 /// Mid-sized tags, found at half resolution: both sides next to the hidden
 /// corner are cut within a fifth of a side of their other ends, so those
 /// corners are seldom formed, and only one corner of the square is: 21 of
-/// 40 were found before the one-corner guess, 33 with it.
+/// 40 were found before the one-corner guess, 33 with it, 37 with the
+/// last resorts (`decoding::Decoded::last_resort`).
 #[test]
 fn mid_sized_tags_under_a_grey_triangle_are_found() {
     let found = grey_triangles(60.0..75.0, 23);
-    assert!(found >= 33, "only {found} of 40 found");
+    assert!(found >= 37, "only {found} of 40 found");
 }
 
 /// Five tags of the wild set crossed by a stick or a cable, all four
@@ -452,5 +457,25 @@ fn tags_whose_side_is_an_occluders_edge_are_fitted_without_it() {
     for d in &found {
         let side_estimated = (0..4).any(|k| d.estimated[k] && d.estimated[(k + 1) % 4]);
         assert!(side_estimated && d.corner_sigma.is_some(), "{d:?}");
+    }
+}
+
+/// Six tags of the wild set under occluders that hide two or three of
+/// their corners (`fixtures/wild/last-resort-crops.csv`: two triangles,
+/// a cable, a stick, a block along a side, a diagonal band; 20-50 px,
+/// 35-40% of the square covered in four). Each was read with the right id,
+/// its hidden corners placed by the model fit at a sigma under
+/// `decoding::HIDDEN_FIT_SIGMA_PX`, and was dropped when read, as the quad
+/// could not check them. Such a reading now stands as a last resort, where
+/// no look finds a tag (`decoding::Decoded::last_resort`): each is found,
+/// every corner within 0.8 px (the worst 0.74 px), two or more corners
+/// estimated, each with a sigma.
+#[test]
+fn tags_with_two_hidden_corners_the_fit_places_stand_as_a_last_resort() {
+    let found = crops_found("last-resort-crops.csv", 0.8);
+    assert_eq!(found.len(), 6);
+    for d in &found {
+        assert!(d.estimated.iter().filter(|&&e| e).count() >= 2, "{d:?}");
+        assert!(d.corner_sigma.is_some(), "{d:?}");
     }
 }

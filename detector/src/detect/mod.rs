@@ -612,7 +612,9 @@ fn small_region(
         };
     }
     ws.guessed = guessed;
-    out
+    let mut last_resort = first.last_resort;
+    last_resort.append(&mut out.last_resort);
+    decoding::Decoded { last_resort, ..out }
 }
 
 /// The upsampled look of [`small_region`] after a full-resolution look
@@ -648,6 +650,9 @@ fn small_upsampled(
     for f in &mut out.found {
         f.mark_upsampled();
     }
+    // An upsampled reading's hidden corners never stand on the fit alone
+    // (`decoding::hidden_corners_fitted`).
+    out.last_resort.clear();
     (ws.up_rows, ws.up) = (rows, up);
     out.attempts += n;
     out
@@ -874,6 +879,7 @@ impl Detector {
             mut found,
             mut foreign,
             mut attempts,
+            mut last_resort,
         } = match workers {
             None => decoding::decode_candidates(
                 &img,
@@ -925,6 +931,7 @@ impl Detector {
                         attempts += more.attempts;
                         found.extend(more.found);
                         foreign.extend(more.foreign);
+                        last_resort.extend(more.last_resort);
                     }
                 }
                 Some(w) => {
@@ -959,6 +966,7 @@ impl Detector {
                         attempts += more.attempts;
                         found.extend(more.found);
                         foreign.extend(more.foreign);
+                        last_resort.extend(more.last_resort);
                     }
                 }
             }
@@ -1032,6 +1040,12 @@ impl Detector {
                 &p.decoding,
             ));
             st.times.rim += laps.lap();
+        }
+        // Last, the readings that stand only where no look found a tag.
+        if !last_resort.is_empty() {
+            let more = decoding::last_resorts(&img, last_resort, &out, &self.targets, &p.decoding);
+            out.extend(more);
+            st.times.verify += laps.lap();
         }
         st.decode_attempts = attempts;
         st.detections = out.len();
