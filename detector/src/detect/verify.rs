@@ -483,21 +483,19 @@ pub(crate) fn verify(
     } else {
         (h0, false)
     };
+    let fit_from = |h: &Homography, how| fit_model(img, &model, h, cell, contrast, how);
+    let check_fit = |f: &Fit| check(img, family, id, f.h, decode, kind, f.unsupported, f.sigma);
     // Where the sides alone do not fit a small tag, a second try with the
     // cell edges (see `MIN_CELL_EDGE_PX`).
-    let (fit, second_try) = match fit_model(img, &model, &h1, cell, contrast, FitHow::default()) {
+    let (fit, second_try) = match fit_from(&h1, FitHow::default()) {
         Some(fit) => (fit, false),
         // The shifted quad stands on the cells alone; it must read.
         None if shifted => {
             return check(img, family, id, h1, decode, kind, [false; 4], [f64::NAN; 4]);
         }
         None if cell >= MIN_CELL_EDGE_PX => return Verdict::Unfit,
-        None => match fit_model(
-            img,
-            &model,
+        None => match fit_from(
             &h1,
-            cell,
-            contrast,
             FitHow {
                 cell_edges: true,
                 ..FitHow::default()
@@ -518,23 +516,14 @@ pub(crate) fn verify(
             without: Some(k),
             ..FitHow::default()
         };
-        if let Some(f) = fit_model(img, &model, &fit.h, cell, contrast, how) {
-            let v = check(img, family, id, f.h, decode, kind, f.unsupported, f.sigma);
+        if let Some(f) = fit_from(&fit.h, how) {
+            let v = check_fit(&f);
             if matches!(v, Verdict::Fitted(_)) {
                 return v;
             }
         }
     }
-    let verdict = check(
-        img,
-        family,
-        id,
-        fit.h,
-        decode,
-        kind,
-        fit.unsupported,
-        fit.sigma,
-    );
+    let verdict = check_fit(&fit);
     // A second try gets no held fit: a reading it contradicts stands or
     // falls as one its fit contradicts on a tag whose cells are too small
     // for their edges (`decoding::small_cells`), as if unfit.
@@ -550,12 +539,8 @@ pub(crate) fn verify(
     });
     // The free fit may have crept off along a direction the visible
     // edges leave free: once more, held near the reading's geometry.
-    let Some(held) = fit_model(
-        img,
-        &model,
+    let Some(held) = fit_from(
         &h1,
-        cell,
-        contrast,
         FitHow {
             prior: Some(PRIOR_SIGMA_CELLS),
             ..FitHow::default()
@@ -563,16 +548,7 @@ pub(crate) fn verify(
     ) else {
         return Verdict::Contradicted(free);
     };
-    match check(
-        img,
-        family,
-        id,
-        held.h,
-        decode,
-        kind,
-        held.unsupported,
-        held.sigma,
-    ) {
+    match check_fit(&held) {
         Verdict::Contradicted(_) => Verdict::Contradicted(free),
         v => v,
     }
