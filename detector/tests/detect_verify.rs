@@ -244,11 +244,12 @@ fn grey_triangles(side: std::ops::Range<f64>, seed: u64) -> usize {
 /// benchmark's main subset) traded scenes 3 and 18 for scene 32 (13), and
 /// no longer holding readings near the code's limit to their own geometry
 /// (a wild-set reading was held 15 px off; see `verify::verify`) lost two
-/// more whose held fits were right (11). Readings with two or three hidden
-/// corners that the fit places surely, taken as a last resort
-/// (`decoding::Decoded::last_resort`), found 26; without their bound on
-/// the estimated corners' sigma (`decoding::LAST_RESORT_SIGMA_PX`), one of
-/// them (scene 16) had a hidden corner 3.1 px off at a sigma of 1.3 px.
+/// more whose held fits were right (11); later changes brought it to 22.
+/// Readings with two or three hidden corners that the fit places surely,
+/// taken as a last resort (`decoding::Decoded::last_resort`), found 26;
+/// without their bound on the estimated corners' sigma
+/// (`decoding::LAST_RESORT_SIGMA_PX`), one of them (scene 16) had a hidden
+/// corner 3.1 px off at a sigma of 1.3 px.
 #[test]
 fn small_tags_under_a_grey_triangle_are_found() {
     let found = grey_triangles(30.0..44.0, 23);
@@ -258,8 +259,8 @@ fn small_tags_under_a_grey_triangle_are_found() {
 /// Mid-sized tags, found at half resolution: both sides next to the hidden
 /// corner are cut within a fifth of a side of their other ends, so those
 /// corners are seldom formed, and only one corner of the square is: 21 of
-/// 40 were found before the one-corner guess, 33 with it, 37 with the
-/// last resorts (`decoding::Decoded::last_resort`).
+/// 40 were found before the one-corner guess, 33 with it; 34 before the
+/// last resorts (`decoding::Decoded::last_resort`), 37 with them.
 #[test]
 fn mid_sized_tags_under_a_grey_triangle_are_found() {
     let found = grey_triangles(60.0..75.0, 23);
