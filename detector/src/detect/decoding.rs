@@ -248,8 +248,8 @@ fn quad_reading(
     targets: &[Target],
     p: &DecodingParams,
 ) -> Outcome {
-    let mut last_resort = None;
-    let own = read(
+    // The quad's own reading, standing or as a last resort.
+    let read_own = read(
         img,
         cand,
         q,
@@ -258,19 +258,12 @@ fn quad_reading(
         &p.decode,
         shown,
         Promising::Align,
-    )
-    .filter(|d| {
-        let standing = match target_of(targets, d) {
-            _ if !d.occluded => Standing::Stands,
-            Some(t) => occluded_standing(img, d, t, p),
-            None => Standing::Falls,
-        };
-        if matches!(standing, Standing::LastResort) {
-            last_resort = Some(d.clone());
-        }
-        matches!(standing, Standing::Stands)
-    })
-    .and_then(|d| unless_faint(img, d, targets, p));
+    );
+    let (own, last_resort) = match read_own.map(|d| (standing(img, &d, targets, p), d)) {
+        Some((Standing::Stands, d)) => (unless_faint(img, d, targets, p), None),
+        Some((Standing::LastResort, d)) => (None, Some(d)),
+        Some((Standing::Falls, _)) | None => (None, None),
+    };
     let reading = own
         .map(|det| Reading {
             det,
@@ -306,16 +299,15 @@ fn quad_reading(
             .and_then(|d| unless_faint(img, d, targets, p))
             .map(|det| Reading { det, outline: true })
         });
-    match (
-        reading,
-        last_resort.and_then(|d| unless_faint(img, d, targets, p)),
-    ) {
-        (Some(r), _) => Outcome::Read(Some(Box::new(r))),
-        (None, Some(det)) => Outcome::LastResort(Box::new(Reading {
+    if reading.is_some() {
+        return Outcome::Read(reading.map(Box::new));
+    }
+    match last_resort.and_then(|d| unless_faint(img, d, targets, p)) {
+        Some(det) => Outcome::LastResort(Box::new(Reading {
             det,
             outline: false,
         })),
-        (None, None) => Outcome::Read(None),
+        None => Outcome::Read(None),
     }
 }
 
@@ -643,6 +635,16 @@ enum Standing {
     /// ([`hidden_fitted`]): see [`Decoded::last_resort`].
     LastResort,
     Falls,
+}
+
+/// How a quad's reading `d` stands: as it is, unless read by the nearest
+/// codeword ([`occluded_standing`]).
+fn standing(img: &GrayView<'_>, d: &Detection, targets: &[Target], p: &DecodingParams) -> Standing {
+    match target_of(targets, d) {
+        _ if !d.occluded => Standing::Stands,
+        Some(t) => occluded_standing(img, d, t, p),
+        None => Standing::Falls,
+    }
 }
 
 /// [`occluded_reading_stands`], telling a reading that stands as a last

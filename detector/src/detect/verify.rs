@@ -927,21 +927,21 @@ fn fit_model(
             }
         }
         for _ in 0..FIT_STEPS {
-            let res: Vec<f64> = meas
+            let rows: Vec<Option<(Row, f64)>> = meas.iter().map(|q| edge_row(&p, q)).collect();
+            let res: Vec<f64> = rows
                 .iter()
-                .map(|q| project(&p, q.m.u).map_or(f64::INFINITY, |(x, _)| dot(q.n, sub(x, q.x))))
+                .map(|row| row.map_or(f64::INFINITY, |(_, r)| r))
                 .collect();
             let mut abs: Vec<f64> = res.iter().map(|r| r.abs()).collect();
             scale = (MAD_TO_SIGMA * median(&mut abs)?).max(MIN_SCALE_PX / s);
             weights = res.iter().map(|r| tukey(r / scale)).collect();
             let mut g = Params::zeros();
             a_mat = SMatrix::<f64, 8, 8>::zeros();
-            for ((q, r), w) in meas.iter().zip(&res).zip(&weights) {
+            for ((row, r), w) in rows.iter().zip(&res).zip(&weights) {
                 if *w <= 0.0 {
                     continue;
                 }
-                let (_, j) = project(&p, q.m.u)?;
-                let row = q.n[0] * j.row(0) + q.n[1] * j.row(1);
+                let (row, _) = (*row)?;
                 a_mat += *w * row.transpose() * row;
                 g += *w * *r * row.transpose();
             }
@@ -994,10 +994,10 @@ fn fit_model(
     }
     // Covariance of the parameters: residual variance over the weighted
     // normal matrix; propagated to each corner (px).
+    let rows: Vec<Option<(Row, f64)>> = meas.iter().map(|q| edge_row(&p, q)).collect();
     let (mut rss, mut wsum) = (0.0, 0.0);
-    for (q, w) in meas.iter().zip(&weights) {
-        if let Some((x, _)) = project(&p, q.m.u) {
-            let r = dot(q.n, sub(x, q.x));
+    for (row, w) in rows.iter().zip(&weights) {
+        if let Some((_, r)) = row {
             rss += w * r * r;
             wsum += w;
         }
@@ -1023,7 +1023,7 @@ fn fit_model(
     }
     let off_side = match how.without {
         None if use_cells && how.prior.is_none() => {
-            off_side(&meas, &weights, &p, cell / s, model.sides.len() / 4)
+            off_side(&meas, &rows, &weights, cell / s, model.sides.len() / 4)
         }
         _ => None,
     };
@@ -1035,8 +1035,9 @@ fn fit_model(
     })
 }
 
-/// The data-square side whose edge points `meas` (weights `weights`), as a
-/// whole, lie off the line the rest of the fit `p` puts them on, further
+/// The data-square side whose edge points `meas` (their rows and
+/// residuals at the fit, `rows`, see [`edge_row`]; weights `weights`), as
+/// a whole, lie off the line the rest of the fit puts them on, further
 /// than the other sides' by over [`OFF_SIDE_CELLS`] (`cell` is the cell
 /// in the fit's units; a side is judged when at least half its `points`
 /// model points were measured): the edge of an occluder flush along that
@@ -1052,25 +1053,18 @@ fn fit_model(
 /// (the step is small: the cells outvote a side).
 fn off_side(
     meas: &[Measured],
+    rows: &[Option<(Row, f64)>],
     weights: &[f64],
-    p: &Params,
     cell: f64,
     points: usize,
 ) -> Option<usize> {
-    let rows: Vec<Option<(SMatrix<f64, 1, 8>, f64)>> = meas
-        .iter()
-        .map(|q| {
-            let (x, j) = project(p, q.m.u)?;
-            Some((q.n[0] * j.row(0) + q.n[1] * j.row(1), dot(q.n, sub(x, q.x))))
-        })
-        .collect();
     // Each side's median offset (cells) from the fit without it, and
     // whether enough of the side showed to judge it.
     let mut offsets = [(0.0, false); 4];
     for (k, o) in offsets.iter_mut().enumerate() {
         let mut a = SMatrix::<f64, 8, 8>::zeros();
         let mut g = Params::zeros();
-        for ((q, row), w) in meas.iter().zip(&rows).zip(weights) {
+        for ((q, row), w) in meas.iter().zip(rows).zip(weights) {
             if let (Some((row, r)), true) = (row, q.m.side != Some(k) && *w > 0.0) {
                 a += *w * row.transpose() * row;
                 g += *w * *r * row.transpose();
@@ -1081,7 +1075,7 @@ fn off_side(
         };
         let mut off: Vec<f64> = meas
             .iter()
-            .zip(&rows)
+            .zip(rows)
             .filter(|(q, _)| q.m.side == Some(k))
             .filter_map(|(_, row)| row.map(|(row, r)| r - (row * delta)[0]))
             .collect();
@@ -1097,6 +1091,16 @@ fn off_side(
         }
     }
     worst.map(|(k, _)| k)
+}
+
+/// One edge point's row of the fit's Jacobian, along its image normal.
+type Row = SMatrix<f64, 1, 8>;
+
+/// Edge point `q`'s [`Row`] at parameters `p` and its residual: how far
+/// along the normal the model puts the edge beyond where it was measured.
+fn edge_row(p: &Params, q: &Measured) -> Option<(Row, f64)> {
+    let (x, j) = project(p, q.m.u)?;
+    Some((q.n[0] * j.row(0) + q.n[1] * j.row(1), dot(q.n, sub(x, q.x))))
 }
 
 /// Tukey's biweight of a residual in robust standard deviations.
