@@ -16,9 +16,10 @@ use crate::family::Family;
 use crate::geometry::{B, CORNERS};
 use crate::grid_code::{decode_cells, encode_cells, rotate_cell, GridReading};
 use crate::homography::Homography;
-use crate::likelihood::{read_likely, Codebook, LikelyFit};
+use crate::likelihood::{read_likely, read_likely_keeping, Codebook, LikelyFit};
 use crate::motion::read_smeared;
 use crate::nearest::{contradicts, read_nearest};
+use crate::shaded::read_shaded;
 
 /// A tag read from four corners.
 #[derive(Debug, Clone, PartialEq)]
@@ -62,6 +63,13 @@ pub struct QuadReading {
     /// corners less so: the detector keeps such a reading only where the
     /// print's fixed look, aligned to the image, confirms them.
     pub faint: bool,
+    /// Read by likelihood under a smooth light field fitted with each
+    /// codeword, the cells the sensor clipped left out (a glare spot, a
+    /// shadow's edge): the last of a quad's readings. A glare that washes
+    /// out the frame also moves the quad's corners there, so such a
+    /// reading is also `faint`, and the detector keeps it only where no
+    /// other reading finds the tag.
+    pub shaded: bool,
 }
 
 fn median(v: &mut [f64]) -> Option<f64> {
@@ -440,8 +448,14 @@ pub(crate) fn decode_quad_by(
     // that were no tag); last of all, cell by cell, for a tag whose hidden
     // cells read confidently wrong (an ink-dark or paper-white occluder).
     let book = family.codebook();
-    let blurred =
-        book.and_then(|book| read_blurred(img, family, book, &y, corners, black, contrast, accept));
+    // The likelihood reading's first-round dot products, for the shaded
+    // reading's first round.
+    let mut dots = Vec::new();
+    let blurred = book.and_then(|book| {
+        read_blurred(
+            img, family, book, &y, corners, black, contrast, accept, &mut dots,
+        )
+    });
     // A faint reading (see `QuadReading::faint`) comes after every other:
     // it needs the detector's alignment of the print to stand, which the
     // others do not.
@@ -468,6 +482,27 @@ pub(crate) fn decode_quad_by(
                 .map(|r| reading_to_quad(r, corners, contrast, Method::Glare))
         })
         .or(blurred)
+        .or_else(|| {
+            let book = book?;
+            let clipped: Vec<bool> = y
+                .iter()
+                .map(|&v| black + v * contrast >= SATURATED_DN)
+                .collect();
+            let fit = read_shaded(book, &y, &clipped, &dots)?;
+            codeword_reading(
+                family,
+                &y,
+                (fit.id, fit.rotation),
+                corners,
+                contrast,
+                Method::Shaded,
+            )
+            .map(|r| QuadReading {
+                faint: true,
+                shaded: true,
+                ..r
+            })
+        })
 }
 
 /// The reading of codeword `id` at `rotation` found by matching the whole
@@ -509,9 +544,10 @@ fn read_blurred(
     black: f64,
     contrast: f64,
     accept: Accept,
+    dots: &mut Vec<f64>,
 ) -> Option<QuadReading> {
     let n = family.grid();
-    let round = read_likely(book, y);
+    let round = read_likely_keeping(book, y, dots);
     let aligned = |fit: &LikelyFit| {
         let aligned = align(img, n, book, fit, corners)?;
         let h = Homography::from_points(&CORNERS, &aligned)?;
@@ -862,6 +898,8 @@ enum Method {
     /// Through the Reed-Solomon code, under glare, on more erasures than
     /// the family's limit allows ([`read_glared`]).
     Glare,
+    /// Likelihood under a smooth light field ([`read_shaded`]).
+    Shaded,
 }
 
 fn reading_to_quad(
@@ -882,10 +920,14 @@ fn reading_to_quad(
         errors: r.errors,
         rotation: d,
         contrast,
-        likelihood: matches!(method, Method::Nearest | Method::Blur | Method::Smear),
+        likelihood: matches!(
+            method,
+            Method::Nearest | Method::Blur | Method::Smear | Method::Shaded
+        ),
         smeared: method == Method::Smear,
         occluded: matches!(method, Method::Nearest | Method::Glare),
         faint: false,
+        shaded: false,
     }
 }
 

@@ -26,6 +26,7 @@ mod motion;
 mod nearest;
 pub mod pose;
 pub mod rs;
+mod shaded;
 #[cfg(test)]
 mod test_images;
 pub mod view;

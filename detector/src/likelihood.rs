@@ -31,7 +31,7 @@ use crate::grid_code::{encode_cells, rotate_cell};
 /// alternating cells keep under 1% of their contrast. On the wild set,
 /// with the tags' true corners, the widest of an earlier set (0 to 1.0)
 /// read the most blurred tags, so the range goes a step beyond it.
-const SIGMAS: [f64; 7] = [0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35];
+pub(crate) const SIGMAS: [f64; 7] = [0.45, 0.6, 0.75, 0.9, 1.05, 1.2, 1.35];
 
 /// Index in [`SIGMAS`] of the blur every codeword is first scored at: the
 /// middle of the range, where most blurred tags on the wild set fit best.
@@ -138,6 +138,14 @@ pub(crate) struct Codebook {
     /// [`Codebook::bit_words`] words (cell `c` is bit `c % 64` of word
     /// `c / 64`), for [`crate::nearest`]'s cell-by-cell distances.
     black_bits: Vec<u64>,
+    /// The shading basis ([`crate::shaded`]) orthonormal over the
+    /// informative cells, one `informative`-long vector per term.
+    shade_basis: Vec<Vec<f64>>,
+    /// Per rotation and id, at the middle blur ([`COARSE_SIGMA`]): the
+    /// template's dot product with each vector of the shading basis
+    /// ([`crate::shaded::TERMS`] of them), then its squared norm over the
+    /// informative cells once the basis is projected out.
+    shade_coarse: Vec<f64>,
 }
 
 /// Cells per look-up group: one byte of pattern.
@@ -209,25 +217,43 @@ impl Codebook {
             outside,
             sums: Vec::new(),
             black_bits: Vec::new(),
+            shade_basis: Vec::new(),
+            shade_coarse: Vec::new(),
         };
+        let all = vec![true; book.informative.len()];
+        book.shade_basis = crate::shaded::basis(n, &book.informative, &all);
         // Indexed blur-major, then rotation, then id; each seen grid is
         // made once for all blurs.
         let per_blur = 4 * book.ids.len();
         let mut sums = vec![(0.0, 0.0); SIGMAS.len() * per_blur];
+        let stride = crate::shaded::TERMS + 1;
+        let mut shade_coarse = vec![0.0; 4 * book.ids.len() * stride];
         for d in 0..4 {
             for i in 0..book.ids.len() {
                 let seen = book.seen(i, d);
                 for s in 0..SIGMAS.len() {
                     let (mut sum, mut sq) = (0.0, 0.0);
-                    for v in book.template_of(&seen, s) {
+                    let t = book.template_of(&seen, s);
+                    for &v in &t {
                         sum += v;
                         sq += v * v;
                     }
                     sums[s * per_blur + d * book.ids.len() + i] = (sum, sq);
+                    if s == COARSE_SIGMA {
+                        let at = (d * book.ids.len() + i) * stride;
+                        let mut along = 0.0;
+                        for (k, q) in book.shade_basis.iter().enumerate() {
+                            let a: f64 = q.iter().zip(&t).map(|(x, y)| x * y).sum();
+                            shade_coarse[at + k] = a;
+                            along += a * a;
+                        }
+                        shade_coarse[at + crate::shaded::TERMS] = sq - along;
+                    }
                 }
             }
         }
         book.sums = sums;
+        book.shade_coarse = shade_coarse;
         let words = book.bit_words();
         let mut black_bits = vec![0u64; 4 * book.ids.len() * words];
         for d in 0..4 {
@@ -288,22 +314,45 @@ impl Codebook {
     /// whose templates' sums are close to those of blur `s` of
     /// [`SIGMAS`], and `outside`, the samples' dot product with what the
     /// margin and frame add through that blur: the codebook's first round,
-    /// one table look-up per group of 8 cells and codeword.
+    /// one table look-up per group of 8 cells and codeword
+    /// ([`Codebook::each_dot`]). The dot products are left in `dots`
+    /// (rotation-major, then id), for a reading that takes the same
+    /// samples further ([`crate::shaded`]).
     pub(crate) fn score_all(
         &self,
         z: &[f64],
         outside: f64,
         y_sums: (f64, f64),
         s: usize,
+        dots: &mut Vec<f64>,
     ) -> Vec<(f64, usize)> {
-        let n = self.n;
         let k = self.informative.len() as f64;
         let nids = self.ids.len();
+        let mut best = vec![(f64::INFINITY, 0usize); nids];
+        dots.clear();
+        self.each_dot(z, outside, |d, i, dot| {
+            dots.push(dot);
+            let sums = self.sums[(s * 4 + d) * nids + i];
+            if let Some((_, _, score)) = plain_fit(dot, sums, y_sums, k) {
+                if score < best[i].0 {
+                    best[i] = (score, d);
+                }
+            }
+        });
+        best
+    }
+
+    /// `<y, t>` over the informative cells for every codeword's template
+    /// at blur `s`, from `z`, the samples blurred inside the grid by blur
+    /// `s`, and `outside`, their dot product with what the margin and
+    /// frame add through it: `f(d, i, dot)` for each rotation `d` and id
+    /// index `i`, one table look-up per group of 8 cells and codeword.
+    fn each_dot(&self, z: &[f64], outside: f64, mut f: impl FnMut(usize, usize, f64)) {
+        let n = self.n;
         let z_inf: f64 = self.informative.iter().map(|&c| z[c]).sum();
         let z_cov: f64 = 0.5 * self.covered.iter().map(|&c| z[c]).sum::<f64>();
         let ng = self.groups.len();
         let mut table = vec![0.0f64; ng * 256];
-        let mut best = vec![(f64::INFINITY, 0usize); nids];
         for d in 0..4 {
             // Sum of z over the black cells of every pattern of each group.
             for (g, cells) in self.groups.iter().enumerate() {
@@ -323,16 +372,64 @@ impl Codebook {
                     .enumerate()
                     .map(|(g, &p)| table[g * 256 + usize::from(p)])
                     .sum();
-                let dot = z_inf - black + z_cov + outside;
-                let sums = self.sums[(s * 4 + d) * nids + i];
-                if let Some((_, _, score)) = plain_fit(dot, sums, y_sums, k) {
-                    if score < best[i].0 {
-                        best[i] = (score, d);
-                    }
-                }
+                f(d, i, z_inf - black + z_cov + outside);
             }
         }
-        best
+    }
+
+    /// The shading basis over the informative cells (see `shade_basis`).
+    pub(crate) fn shade_basis(&self) -> &[Vec<f64>] {
+        &self.shade_basis
+    }
+
+    /// Codeword `i` at `d` quarter turns at the middle blur
+    /// ([`COARSE_SIGMA`]): its template's dot products with the shading
+    /// basis, and its squared norm with the basis projected out.
+    pub(crate) fn shade_coarse(&self, d: usize, i: usize) -> (&[f64], f64) {
+        let stride = crate::shaded::TERMS + 1;
+        let at = (d * self.ids.len() + i) * stride;
+        let v = &self.shade_coarse[at..at + stride];
+        (&v[..self.shade_basis.len()], v[crate::shaded::TERMS])
+    }
+
+    /// `<y, t>` over the informative cells for every codeword's template
+    /// at the middle blur ([`COARSE_SIGMA`]), rotation-major, then id: the
+    /// first round's dot products ([`Codebook::score_all`]).
+    pub(crate) fn coarse_dots(&self, y: &[f64]) -> Vec<f64> {
+        let (z, outside) = self.blurred_samples(y, COARSE_SIGMA);
+        let mut dots = Vec::with_capacity(4 * self.ids.len());
+        self.each_dot(&z, outside, |_, _, dot| dots.push(dot));
+        dots
+    }
+
+    /// `y` (n x n) with its cells off the informative set zeroed, blurred
+    /// inside the grid by blur `s`, and its dot product with what the
+    /// margin and frame add through that blur.
+    fn blurred_samples(&self, y: &[f64], s: usize) -> (Vec<f64>, f64) {
+        let mut masked = vec![0.0; self.n * self.n];
+        for &c in &self.informative {
+            masked[c] = y[c];
+        }
+        let z = self.blur_inside(&masked, s);
+        let outside = self
+            .informative
+            .iter()
+            .map(|&c| y[c] * self.outside[s][c])
+            .sum();
+        (z, outside)
+    }
+
+    /// A fit of codeword `i` at `d` quarter turns and blur `s` with the
+    /// lead `ratio` and fitted contrast `scale`.
+    pub(crate) fn fit_of(&self, i: usize, d: usize, s: usize, ratio: f64, scale: f64) -> LikelyFit {
+        LikelyFit {
+            id: self.ids[i],
+            rotation: d,
+            index: i,
+            blur: s,
+            ratio,
+            scale,
+        }
     }
 
     /// The fit of a smeared reading ([`crate::motion`]) of codeword `i` at
@@ -367,7 +464,7 @@ impl Codebook {
 
     /// The template of codeword `i` at `d` quarter turns and blur `s`, on
     /// the informative cells.
-    fn template(&self, i: usize, d: usize, s: usize) -> Vec<f64> {
+    pub(crate) fn template(&self, i: usize, d: usize, s: usize) -> Vec<f64> {
         self.template_of(&self.seen(i, d), s)
     }
 
@@ -558,6 +655,17 @@ pub(crate) fn trimmed(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
 /// products with the blurred samples; the [`TRIMMED_IDS`] best of those on
 /// their best-fitting cells.
 pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
+    read_likely_keeping(book, y, &mut Vec::new())
+}
+
+/// [`read_likely`], leaving the first round's dot products in `dots`
+/// ([`Codebook::coarse_dots`]; empty when no round ran).
+pub(crate) fn read_likely_keeping(
+    book: &Codebook,
+    y: &[f64],
+    dots: &mut Vec<f64>,
+) -> Option<LikelyFit> {
+    dots.clear();
     let n = book.n;
     if y.len() != n * n {
         return None;
@@ -565,29 +673,17 @@ pub(crate) fn read_likely(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
     let k = book.informative.len() as f64;
     let ys: Vec<f64> = book.informative.iter().map(|&c| y[c]).collect();
     let y_sums = (ys.iter().sum(), ys.iter().map(|v| v * v).sum());
-    let mut masked = vec![0.0; n * n];
-    for &c in &book.informative {
-        masked[c] = y[c];
-    }
     let nids = book.ids.len();
     // `<y, t>` over the informative cells for the template of the seen grid
     // `x` at blur `s`, from the blurred samples `z`: the blur is symmetric,
     // so `<y, B x + outside> = <B y, x> + <y, outside>`.
-    let blur_at = |s: usize| {
-        let z = book.blur_inside(&masked, s);
-        let outside: f64 = book
-            .informative
-            .iter()
-            .map(|&c| y[c] * book.outside[s][c])
-            .sum();
-        (z, outside)
-    };
+    let blur_at = |s: usize| book.blurred_samples(y, s);
 
     // Round 1: every codeword at the middle blur (the other blurs are
     // computed only for a grid that passes it).
     let coarse_blur = blur_at(COARSE_SIGMA);
     let (z, outside) = &coarse_blur;
-    let coarse = book.score_all(z, *outside, y_sums, COARSE_SIGMA);
+    let coarse = book.score_all(z, *outside, y_sums, COARSE_SIGMA, dots);
     let mut order: Vec<usize> = (0..nids).filter(|&i| coarse[i].0.is_finite()).collect();
     order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
     if let [a, b, ..] = order[..] {

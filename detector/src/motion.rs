@@ -311,7 +311,7 @@ pub(crate) fn read_smeared(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
         .iter()
         .map(|&c| y[c] * coarse_smear.around[c])
         .sum();
-    let coarse = book.score_all(&z, outside_dot, y_sums, COARSE_SUMS);
+    let coarse = book.score_all(&z, outside_dot, y_sums, COARSE_SUMS, &mut Vec::new());
     let mut order: Vec<usize> = (0..coarse.len())
         .filter(|&i| coarse[i].0.is_finite())
         .collect();

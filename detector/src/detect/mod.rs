@@ -130,6 +130,10 @@ pub struct Detection {
     /// aligned print (`decoding::unless_faint`).
     #[serde(skip)]
     pub(crate) faint: bool,
+    /// Read under a smooth light field (`decode::QuadReading::shaded`):
+    /// kept only as a last resort.
+    #[serde(skip)]
+    pub(crate) shaded: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).
