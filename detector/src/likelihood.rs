@@ -644,6 +644,25 @@ pub(crate) fn trimmed(t: &[f64], y: &[f64]) -> Option<(f64, f64)> {
     Some((r[..keep].iter().sum::<f64>() / keep as f64 / (a * a), a))
 }
 
+/// The ids of a first round's scores `coarse` (per id: score, less is
+/// better, and rotation) best first, at most `keep` of them; `None` when
+/// the best does not lead the second by `lead` (its score over the
+/// second's at most `lead`): most quads that are no tag fit many ids
+/// about equally.
+pub(crate) fn leading(coarse: &[(f64, usize)], lead: f64, keep: usize) -> Option<Vec<usize>> {
+    let mut order: Vec<usize> = (0..coarse.len())
+        .filter(|&i| coarse[i].0.is_finite())
+        .collect();
+    order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
+    if let [a, b, ..] = order[..] {
+        if coarse[a].0 > lead * coarse[b].0 {
+            return None;
+        }
+    }
+    order.truncate(keep);
+    Some(order)
+}
+
 /// The best codeword of `book` for the cells' whiteness `y` (the seen `n`
 /// x `n` grid, row-major, 0 at the frame's black, 1 at the margin's
 /// white), and how clearly it wins ([`LikelyFit::reads`]); `None` when no
@@ -684,14 +703,7 @@ pub(crate) fn read_likely_keeping(
     let coarse_blur = blur_at(COARSE_SIGMA);
     let (z, outside) = &coarse_blur;
     let coarse = book.score_all(z, *outside, y_sums, COARSE_SIGMA, dots);
-    let mut order: Vec<usize> = (0..nids).filter(|&i| coarse[i].0.is_finite()).collect();
-    order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
-    if let [a, b, ..] = order[..] {
-        if coarse[a].0 > COARSE_LEAD * coarse[b].0 {
-            return None;
-        }
-    }
-    order.truncate(FINE_IDS);
+    let order = leading(&coarse, COARSE_LEAD, FINE_IDS)?;
     let blurred: Vec<(Vec<f64>, f64)> = (0..SIGMAS.len())
         .map(|s| {
             if s == COARSE_SIGMA {

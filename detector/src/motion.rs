@@ -27,7 +27,7 @@
 //! this crate's own.
 
 use crate::deblur::outside;
-use crate::likelihood::{plain_fit, trimmed, Codebook, LikelyFit};
+use crate::likelihood::{leading, plain_fit, trimmed, Codebook, LikelyFit};
 
 /// Lengths (cells) of the smears tried. A smear under about one and a half
 /// cells leaves the round templates' narrow widths a fit; past 4 cells a
@@ -312,16 +312,7 @@ pub(crate) fn read_smeared(book: &Codebook, y: &[f64]) -> Option<LikelyFit> {
         .map(|&c| y[c] * coarse_smear.around[c])
         .sum();
     let coarse = book.score_all(&z, outside_dot, y_sums, COARSE_SUMS, &mut Vec::new());
-    let mut order: Vec<usize> = (0..coarse.len())
-        .filter(|&i| coarse[i].0.is_finite())
-        .collect();
-    order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
-    if let [a, b, ..] = order[..] {
-        if coarse[a].0 > COARSE_LEAD * coarse[b].0 {
-            return None;
-        }
-    }
-    order.truncate(FINE_IDS);
+    let order = leading(&coarse, COARSE_LEAD, FINE_IDS)?;
 
     // Round 2: those ids at their best rotation, at every length, on
     // exact templates: (score, id index, template).

@@ -22,7 +22,7 @@
 //! few products per codeword; only the few best ids are fitted again on
 //! the unclipped cells.
 
-use crate::likelihood::{Codebook, LikelyFit, SIGMAS};
+use crate::likelihood::{leading, Codebook, LikelyFit, SIGMAS};
 
 /// Terms of the light field fitted with each codeword: 1, u, v, u^2, uv,
 /// v^2 over the grid (u, v the cell's column and row about the centre, in
@@ -115,6 +115,14 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
+/// `v` on the cells `keep` marks, zero on the others.
+fn kept(v: &[f64], keep: &[bool]) -> Vec<f64> {
+    v.iter()
+        .zip(keep)
+        .map(|(&x, &k)| if k { x } else { 0.0 })
+        .collect()
+}
+
 /// `v` with its components along the orthonormal vectors `q` removed.
 fn project_out(q: &[Vec<f64>], v: &[f64]) -> Vec<f64> {
     let mut out = v.to_vec();
@@ -179,25 +187,11 @@ pub(crate) fn read_shaded(
             coarse[i] = (rss, d);
         }
     }
-    let mut order: Vec<usize> = (0..book.ids())
-        .filter(|&i| coarse[i].0.is_finite())
-        .collect();
-    order.sort_by(|&a, &b| coarse[a].0.total_cmp(&coarse[b].0));
-    if let [a, b, ..] = order[..] {
-        if coarse[a].0 > COARSE_LEAD * coarse[b].0 {
-            return None;
-        }
-    }
-    order.truncate(SHADED_FINE_IDS);
+    let order = leading(&coarse, COARSE_LEAD, SHADED_FINE_IDS)?;
 
     // Round 2: those ids at every blur, on the unclipped cells.
     let q = basis(n, inf, &keep);
-    let ym: Vec<f64> = yi
-        .iter()
-        .zip(&keep)
-        .map(|(&v, &k)| if k { v } else { 0.0 })
-        .collect();
-    let ymp = project_out(&q, &ym);
+    let ymp = project_out(&q, &kept(&yi, &keep));
     let yy = dot(&ymp, &ymp);
     let mut fine: Vec<(f64, usize, usize, f64)> = order
         .iter()
@@ -205,13 +199,7 @@ pub(crate) fn read_shaded(
             let d = coarse[i].1;
             (0..SIGMAS.len())
                 .filter_map(|s| {
-                    let t: Vec<f64> = book
-                        .template(i, d, s)
-                        .iter()
-                        .zip(&keep)
-                        .map(|(&v, &k)| if k { v } else { 0.0 })
-                        .collect();
-                    let tp = project_out(&q, &t);
+                    let tp = project_out(&q, &kept(&book.template(i, d, s), &keep));
                     let norm = dot(&tp, &tp);
                     let a = dot(&ymp, &tp);
                     (a > 0.0 && norm > 1e-9).then(|| (yy - a * a / norm, i, s, a / norm))
