@@ -484,10 +484,7 @@ pub(crate) fn decode_quad_by(
         .or(blurred)
         .or_else(|| {
             let book = book?;
-            let clipped: Vec<bool> = y
-                .iter()
-                .map(|&v| black + v * contrast >= SATURATED_DN)
-                .collect();
+            let clipped: Vec<bool> = y.iter().map(|&v| clipped(v, black, contrast)).collect();
             let fit = read_shaded(book, &y, &clipped, &dots)?;
             codeword_reading(
                 family,
@@ -790,6 +787,12 @@ fn read_cells(family: &Family, x: &[f64], erase_fraction: f64) -> Option<GridRea
 /// into its clipped neighbours' edges and the sensor noise of the frame.
 const SATURATED_DN: f64 = 245.0;
 
+/// Whether a cell of whiteness `v` on a tag of `black` level and
+/// `contrast` was clipped by the sensor ([`SATURATED_DN`]).
+fn clipped(v: f64, black: f64, contrast: f64) -> bool {
+    black + v * contrast >= SATURATED_DN
+}
+
 /// Cells' whiteness `y` read under glare, when a cell's mean grey level is
 /// clipped ([`SATURATED_DN`]; the tag's `black` level and `contrast` give
 /// the grey level back from `y`): each cell levelled between the darkest
@@ -807,7 +810,7 @@ fn read_glared(
     contrast: f64,
     erase_fraction: f64,
 ) -> Option<GridReading> {
-    if !y.iter().any(|&v| black + v * contrast >= SATURATED_DN) {
+    if !y.iter().any(|&v| clipped(v, black, contrast)) {
         return None;
     }
     let x = levelled_min_max(y, family.grid());
@@ -1123,11 +1126,8 @@ mod tests {
     fn a_glare_clipping_part_of_the_tag_reads_on_erasures_alone() {
         let fam = Family::ct14();
         let (y, black, contrast) = under_clipped_glare(fam, 77, 500.0);
-        let clipped = y
-            .iter()
-            .filter(|&&v| black + v * contrast >= SATURATED_DN)
-            .count();
-        assert!(clipped > 50, "{clipped} cells clipped");
+        let n_clipped = y.iter().filter(|&&v| clipped(v, black, contrast)).count();
+        assert!(n_clipped > 50, "{n_clipped} cells clipped");
         // Neither the tag's levels nor its neighbourhoods read it.
         assert!(read_cells(fam, &y, 0.2).is_none());
         let cap = fam.code().parity() / 2 - SHADED_MARGIN;

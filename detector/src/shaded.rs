@@ -288,6 +288,19 @@ mod tests {
         assert_eq!((a.id, a.rotation), (b.id, b.rotation));
     }
 
+    /// Grids of the wrong size, or with a clipped-cell mask of the wrong
+    /// size, or dot products of the wrong length (computed afresh), are
+    /// refused or handled without a panic.
+    #[test]
+    fn malformed_grids_are_refused() {
+        let (y, clipped) = lit(42, 1, (0.1, -0.2), 9);
+        assert!(read_shaded(book(), &y[..100], &clipped[..100], &[]).is_none());
+        assert!(read_shaded(book(), &y, &clipped[..195], &[]).is_none());
+        assert!(read_shaded(book(), &[f64::NAN; 196], &[false; 196], &[]).is_none());
+        let fit = read_shaded(book(), &y, &clipped, &[1.0; 7]).expect("read");
+        assert_eq!((fit.id, fit.rotation), (42, 1));
+    }
+
     /// Grids of no tag under the same light, cells drawn at random, are
     /// not read; nor is a smooth field alone, nor a grid mostly clipped.
     #[test]

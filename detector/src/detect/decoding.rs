@@ -1112,16 +1112,19 @@ pub(crate) fn one_per_tag(found: Vec<Found>) -> Vec<Detection> {
         .collect()
 }
 
+/// Whether detections `a` and `b` are of one physical tag: one contains
+/// the other's centre ([`one_per_tag`]).
+fn same_tag(a: &Detection, b: &Detection) -> bool {
+    inside(&a.corners, b.center) || inside(&b.corners, a.center)
+}
+
 /// [`one_per_tag`], each detection with the index in `found` of the
 /// reading it is.
 pub(crate) fn one_per_tag_indexed(found: Vec<Found>) -> Vec<(usize, Detection)> {
     let mut kept: Vec<(usize, Reading)> = Vec::with_capacity(found.len());
     for (i, Found { reading: r, .. }) in found.into_iter().enumerate() {
         let d = &r.det;
-        if let Some(o) = kept
-            .iter_mut()
-            .find(|(_, o)| inside(&o.det.corners, d.center) || inside(&d.corners, o.det.center))
-        {
+        if let Some(o) = kept.iter_mut().find(|(_, o)| same_tag(&o.det, d)) {
             if r.beats(&o.1) {
                 *o = (i, r);
             }
@@ -1191,9 +1194,11 @@ pub(crate) fn verify_all(
         .collect()
 }
 
-/// The readings of `last_resort` ([`Decoded::last_resort`]), one per tag,
-/// that lie in no detection of `out` nor hold one, verified
-/// ([`verify_all`]): the tags no look found otherwise.
+/// The readings of `last_resort` ([`Decoded::last_resort`]) that lie in
+/// no detection of `out` nor hold one, one per tag: of each tag's
+/// readings, the best that stands ([`last_resort_stands`]), at most
+/// [`LAST_RESORT_TRIES`] of them tried. The tags no look found otherwise,
+/// sorted by family and id.
 pub(crate) fn last_resorts(
     img: &GrayView<'_>,
     last_resort: Vec<Found>,
@@ -1208,13 +1213,12 @@ pub(crate) fn last_resorts(
     let mut groups: Vec<Vec<Found>> = Vec::new();
     for f in last_resort {
         let d = &f.reading.det;
-        let overlaps = |o: &Detection| inside(&o.corners, d.center) || inside(&d.corners, o.center);
-        if out.iter().any(overlaps) {
+        if out.iter().any(|o| same_tag(o, d)) {
             continue;
         }
         match groups
             .iter_mut()
-            .find(|g| g.iter().any(|o| overlaps(&o.reading.det)))
+            .find(|g| g.iter().any(|o| same_tag(&o.reading.det, d)))
         {
             Some(g) => g.push(f),
             None => groups.push(vec![f]),

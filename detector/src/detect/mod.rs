@@ -655,7 +655,9 @@ fn small_upsampled(
         f.mark_upsampled();
     }
     // An upsampled reading's hidden corners never stand on the fit alone
-    // (`decoding::hidden_corners_fitted`).
+    // (`decoding::hidden_corners_fitted`). Its shaded readings
+    // (`decode::QuadReading::shaded`) go with them: the shaded reading was
+    // measured without them.
     out.last_resort.clear();
     (ws.up_rows, ws.up) = (rows, up);
     out.attempts += n;

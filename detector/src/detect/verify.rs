@@ -1059,15 +1059,24 @@ fn off_side(
     points: usize,
 ) -> Option<usize> {
     // Each side's median offset (cells) from the fit without it, and
-    // whether enough of the side showed to judge it.
+    // whether enough of the side showed to judge it. The normal equations
+    // without a side are the whole fit's less that side's own terms,
+    // summed once per side (index 4: the cell edges).
+    let mut sums = [(SMatrix::<f64, 8, 8>::zeros(), Params::zeros()); 5];
+    for ((q, row), w) in meas.iter().zip(rows).zip(weights) {
+        if let (Some((row, r)), true) = (row, *w > 0.0) {
+            let (a, g) = &mut sums[q.m.side.map_or(4, |k| k.min(4))];
+            *a += *w * row.transpose() * row;
+            *g += *w * *r * row.transpose();
+        }
+    }
     let mut offsets = [(0.0, false); 4];
     for (k, o) in offsets.iter_mut().enumerate() {
-        let mut a = SMatrix::<f64, 8, 8>::zeros();
-        let mut g = Params::zeros();
-        for ((q, row), w) in meas.iter().zip(rows).zip(weights) {
-            if let (Some((row, r)), true) = (row, q.m.side != Some(k) && *w > 0.0) {
-                a += *w * row.transpose() * row;
-                g += *w * *r * row.transpose();
+        let (mut a, mut g) = (SMatrix::<f64, 8, 8>::zeros(), Params::zeros());
+        for (j, (aj, gj)) in sums.iter().enumerate() {
+            if j != k {
+                a += aj;
+                g += gj;
             }
         }
         let Some(delta) = a.lu().solve(&g) else {
