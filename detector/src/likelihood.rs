@@ -126,6 +126,10 @@ pub(crate) struct Codebook {
     /// Black cells of each id in each group, as 8-bit patterns
     /// (`ids.len() * groups.len()`).
     patterns: Vec<u8>,
+    /// The same for each id's seen grid at each rotation (rotation-major,
+    /// then id, then group), over the upright groups: one table of group
+    /// sums then serves all four rotations ([`Codebook::each_dot`]).
+    turned: Vec<u8>,
     /// Per blur: axis weights of the offsets `-REACH..=REACH`.
     weights: Vec<Vec<f64>>,
     /// Per blur: what the white margin and black frame around the grid add
@@ -213,6 +217,7 @@ impl Codebook {
             covered,
             groups,
             patterns,
+            turned: Vec::new(),
             weights,
             outside,
             sums: Vec::new(),
@@ -267,6 +272,21 @@ impl Codebook {
             }
         }
         book.black_bits = black_bits;
+        let mut turned = Vec::with_capacity(4 * book.ids.len() * book.groups.len());
+        for d in 0..4 {
+            for i in 0..book.ids.len() {
+                let seen = book.seen(i, d);
+                for g in &book.groups {
+                    let bits = g
+                        .iter()
+                        .enumerate()
+                        .filter(|&(_, &c)| c != usize::MAX && seen[c] == 0.0)
+                        .fold(0u8, |acc, (b, _)| acc | (1 << b));
+                    turned.push(bits);
+                }
+            }
+        }
+        book.turned = turned;
         Some(book)
     }
 
@@ -348,32 +368,32 @@ impl Codebook {
     /// frame add through it: `f(d, i, dot)` for each rotation `d` and id
     /// index `i`, one table look-up per group of 8 cells and codeword.
     fn each_dot(&self, z: &[f64], outside: f64, mut f: impl FnMut(usize, usize, f64)) {
-        let n = self.n;
         let z_inf: f64 = self.informative.iter().map(|&c| z[c]).sum();
         let z_cov: f64 = 0.5 * self.covered.iter().map(|&c| z[c]).sum::<f64>();
         let ng = self.groups.len();
+        // Sum of z over the black cells of every pattern of each group,
+        // once: the seen grids' patterns (`turned`) are over the upright
+        // groups at every rotation.
         let mut table = vec![0.0f64; ng * 256];
-        for d in 0..4 {
-            // Sum of z over the black cells of every pattern of each group.
-            for (g, cells) in self.groups.iter().enumerate() {
-                let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
-                    usize::MAX => 0.0,
-                    c => z[rotate_cell(c, n, d)],
-                });
-                let t = &mut table[g * 256..(g + 1) * 256];
-                t[0] = 0.0;
-                for v in 1..256usize {
-                    t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
-                }
+        for (g, cells) in self.groups.iter().enumerate() {
+            let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
+                usize::MAX => 0.0,
+                c => z[c],
+            });
+            let t = &mut table[g * 256..(g + 1) * 256];
+            t[0] = 0.0;
+            for v in 1..256usize {
+                t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
             }
-            for (i, pat) in self.patterns.chunks_exact(ng).enumerate() {
-                let black: f64 = pat
-                    .iter()
-                    .enumerate()
-                    .map(|(g, &p)| table[g * 256 + usize::from(p)])
-                    .sum();
-                f(d, i, z_inf - black + z_cov + outside);
-            }
+        }
+        let nids = self.ids.len();
+        for (k, pat) in self.turned.chunks_exact(ng).enumerate() {
+            let black: f64 = pat
+                .iter()
+                .enumerate()
+                .map(|(g, &p)| table[g * 256 + usize::from(p)])
+                .sum();
+            f(k / nids, k % nids, z_inf - black + z_cov + outside);
         }
     }
 
@@ -881,6 +901,28 @@ mod tests {
                 read_likely(&book, &y).is_none_or(|r| !r.reads()),
                 "seed {seed}"
             );
+        }
+    }
+
+    #[test]
+    fn table_dot_products_are_the_templates_at_every_rotation() {
+        // The first round's look-ups against `<y, B x> + <y, outside>`
+        // computed cell by cell from each seen grid, for uneven samples
+        // (no symmetry to hide a rotation mixed up).
+        let book = Codebook::new(Family::ct14()).unwrap();
+        let y: Vec<f64> = (0..196)
+            .map(|i| ((i * 37 % 101) as f64 / 50.0 - 0.3) + 0.01 * i as f64)
+            .collect();
+        let dots = book.coarse_dots(&y);
+        assert_eq!(dots.len(), 4 * book.ids());
+        let (z, outside) = book.blurred_samples(&y, COARSE_SIGMA);
+        for d in 0..4 {
+            for i in 0..book.ids() {
+                let x = book.seen(i, d);
+                let want: f64 = x.iter().zip(&z).map(|(a, b)| a * b).sum::<f64>() + outside;
+                let got = dots[d * book.ids() + i];
+                assert!((got - want).abs() < 1e-9, "d {d} id {i}: {got} vs {want}");
+            }
         }
     }
 
