@@ -1329,13 +1329,17 @@ fn last_resort_stands(
 }
 
 /// Largest sigma (px) of an estimated corner of a last resort
-/// ([`last_resorts`]) once verified: twice it is 2 px, a third under the
-/// 3 px of a rough corner. The reading is checked by nothing but its fit
-/// and its cells. At [`HIDDEN_FIT_SIGMA_PX`] (1.5 px), a test scene's tag
-/// under a grey triangle (`detect_verify::grey_triangles`, 33 px) was kept
-/// with a hidden corner 3.1 px off at a sigma of 1.3 px; with 1.0, 4 of
-/// the 28 wild-set markers it found were lost, none of them rough.
-const LAST_RESORT_SIGMA_PX: f64 = 1.0;
+/// ([`last_resorts`]) once verified: twice it is 2.5 px, under the 3 px of
+/// a rough corner. The reading is checked by nothing but its fit and its
+/// cells. At [`HIDDEN_FIT_SIGMA_PX`] (1.5 px), a test scene's tag under a
+/// grey triangle (`detect_verify::grey_triangles`, 33 px) was kept with a
+/// hidden corner 3.1 px off at a sigma of 1.3 px, so the bound stays under
+/// 1.3. Against 1.0, where it was first set: 8 more of the wild set's
+/// markers (their estimated corners at sigmas of 1.01-1.21 px, at most
+/// 1.13 px off), 1 more of the calibration set's, none lost or rough; most
+/// glared tags read as last resorts have an estimated corner at 1.3-11 px
+/// (up to 3.3 px off), which this leaves out.
+const LAST_RESORT_SIGMA_PX: f64 = 1.25;
 
 /// The verification of each tag found so far ([`verify_all`]), ahead of
 /// [`one_per_tag`], on the current thread pool: the fit is a pure function
