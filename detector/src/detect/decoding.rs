@@ -474,6 +474,7 @@ fn reads_as_foreign(
 ) -> bool {
     [Family::ct8(), Family::ct14()]
         .into_iter()
+        .filter(|f| f.codebook().is_none())
         .filter(|f| targets.iter().all(|t| t.family.name() != f.name()))
         .any(|f| {
             let limit =
@@ -484,9 +485,7 @@ fn reads_as_foreign(
                 smeared: false,
                 promising: Promising::Smear,
             };
-            f.codebook().is_none()
-                && decode_quad_by(img, f, q, params, accept)
-                    .is_some_and(|r| !r.likelihood && !r.occluded)
+            decode_quad_by(img, f, q, params, accept).is_some_and(|r| !r.likelihood && !r.occluded)
         })
 }
 
