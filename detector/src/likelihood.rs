@@ -155,6 +155,15 @@ pub(crate) struct Codebook {
 /// Cells per look-up group: one byte of pattern.
 const GROUP: usize = 8;
 
+/// The pattern of group `g` (bit `b` for its cell `g[b]`; `usize::MAX`
+/// pads) whose cells `black` says are black.
+fn group_pattern(g: &[usize; GROUP], black: impl Fn(usize) -> bool) -> u8 {
+    g.iter()
+        .enumerate()
+        .filter(|&(_, &c)| c != usize::MAX && black(c))
+        .fold(0u8, |acc, (b, _)| acc | (1 << b))
+}
+
 impl std::fmt::Debug for Codebook {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Codebook")
@@ -195,14 +204,7 @@ impl Codebook {
         let mut patterns = Vec::with_capacity(ids.len() * groups.len());
         for &id in &ids {
             let black = encode_cells(family, id).ok()?;
-            for g in &groups {
-                let bits = g
-                    .iter()
-                    .enumerate()
-                    .filter(|&(_, &c)| c != usize::MAX && black[c])
-                    .fold(0u8, |acc, (b, _)| acc | (1 << b));
-                patterns.push(bits);
-            }
+            patterns.extend(groups.iter().map(|g| group_pattern(g, |c| black[c])));
         }
         let weights: Vec<Vec<f64>> = SIGMAS.iter().map(|&s| cell_weights(s, REACH)).collect();
         let zero = vec![0.0; n * n];
@@ -259,33 +261,28 @@ impl Codebook {
         }
         book.sums = sums;
         book.shade_coarse = shade_coarse;
+        // Each seen grid's black cells, as a bit set and as the patterns of
+        // the upright groups.
         let words = book.bit_words();
         let mut black_bits = vec![0u64; 4 * book.ids.len() * words];
-        for d in 0..4 {
-            for i in 0..book.ids.len() {
-                let at = (d * book.ids.len() + i) * words;
-                for (c, &v) in book.seen(i, d).iter().enumerate() {
-                    if v == 0.0 {
-                        black_bits[at + c / 64] |= 1 << (c % 64);
-                    }
-                }
-            }
-        }
-        book.black_bits = black_bits;
         let mut turned = Vec::with_capacity(4 * book.ids.len() * book.groups.len());
         for d in 0..4 {
             for i in 0..book.ids.len() {
                 let seen = book.seen(i, d);
-                for g in &book.groups {
-                    let bits = g
-                        .iter()
-                        .enumerate()
-                        .filter(|&(_, &c)| c != usize::MAX && seen[c] == 0.0)
-                        .fold(0u8, |acc, (b, _)| acc | (1 << b));
-                    turned.push(bits);
+                let at = (d * book.ids.len() + i) * words;
+                for (c, &v) in seen.iter().enumerate() {
+                    if v == 0.0 {
+                        black_bits[at + c / 64] |= 1 << (c % 64);
+                    }
                 }
+                turned.extend(
+                    book.groups
+                        .iter()
+                        .map(|g| group_pattern(g, |c| seen[c] == 0.0)),
+                );
             }
         }
+        book.black_bits = black_bits;
         book.turned = turned;
         Some(book)
     }

@@ -11,6 +11,7 @@
 
 use rayon::prelude::*;
 
+use super::config::FamilySetting;
 use super::outline::data_square_within;
 use super::parallel::Workers;
 use super::pitch::{rules_out, shown_grid};
@@ -68,6 +69,16 @@ pub(crate) struct Target {
     pub family: Family,
     /// Most Reed-Solomon symbol corrections accepted.
     pub max_corrected: usize,
+}
+
+impl Target {
+    /// The target of a family setting: its family, at its limit.
+    pub(crate) fn of(setting: &FamilySetting) -> Self {
+        Self {
+            family: setting.family.clone(),
+            max_corrected: setting.correction_limit(),
+        }
+    }
 }
 
 /// A candidate's reading, and whether it was taken inside the candidate
@@ -472,20 +483,20 @@ fn reads_as_foreign(
     targets: &[Target],
     params: &DecodeParams,
 ) -> bool {
-    [Family::ct8(), Family::ct14()]
-        .into_iter()
+    Family::builtin()
+        .iter()
         .filter(|f| f.codebook().is_none())
         .filter(|f| targets.iter().all(|t| t.family.name() != f.name()))
-        .any(|f| {
-            let limit =
-                super::config::FamilySetting::builtin(f.name()).map_or(0, |s| s.correction_limit());
+        .filter_map(|f| FamilySetting::builtin(f.name()).ok())
+        .any(|s| {
             let accept = Accept {
                 nearest: false,
-                limit: Some(limit),
+                limit: Some(s.correction_limit()),
                 smeared: false,
                 promising: Promising::Smear,
             };
-            decode_quad_by(img, f, q, params, accept).is_some_and(|r| !r.likelihood && !r.occluded)
+            decode_quad_by(img, &s.family, q, params, accept)
+                .is_some_and(|r| !r.likelihood && !r.occluded)
         })
 }
 
@@ -1562,12 +1573,7 @@ mod tests {
 
     /// A target of `fam` at its default limit.
     fn target(fam: &Family) -> Target {
-        Target {
-            family: fam.clone(),
-            max_corrected: super::super::config::FamilySetting::builtin(fam.name())
-                .unwrap()
-                .correction_limit(),
-        }
+        Target::of(&FamilySetting::builtin(fam.name()).unwrap())
     }
 
     #[test]
@@ -1594,15 +1600,17 @@ mod tests {
             let img = GrayView::from(&img);
             assert!(!reads_as_foreign(&img, &q, &[target(ct14)], &d), "{side}");
         }
-        // Nor is a blank square.
+        // Nor is a blank square, a square partly off the image, or three
+        // corners on a line.
         let img = image::GrayImage::from_pixel(320, 320, image::Luma([128]));
-        let q = square([160.0, 160.0], 40.0);
-        assert!(!reads_as_foreign(
-            &GrayView::from(&img),
-            &q,
-            &[target(ct14)],
-            &d
-        ));
+        let img = GrayView::from(&img);
+        for q in [
+            square([160.0, 160.0], 40.0),
+            square([5.0, 5.0], 40.0),
+            [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 10.0]],
+        ] {
+            assert!(!reads_as_foreign(&img, &q, &[target(ct14)], &d), "{q:?}");
+        }
     }
 
     /// An axis-aligned square of side `side` centred on `c`, anticlockwise

@@ -777,10 +777,7 @@ impl Detector {
         let targets = config
             .families
             .iter()
-            .map(|f| decoding::Target {
-                family: f.family.clone(),
-                max_corrected: f.correction_limit(),
-            })
+            .map(decoding::Target::of)
             .collect::<Vec<_>>();
         // The families' codebooks for the likelihood reading are built
         // here too, not by the first frame that needs one: about 6 ms for
