@@ -92,8 +92,11 @@ pub struct Detection {
     pub estimated: [bool; 4],
     /// One-sigma uncertainty of each corner (px, radial: the root of the
     /// trace of its 2 x 2 covariance), from the fit of the tag's model to
-    /// its visible edges; `None` when the tag was too small or too hidden
-    /// for that fit and its corners are the side lines' intersections.
+    /// its visible edges; for a small, blurred tag placed by the printed
+    /// tag's fixed look aligned to the image where that fit found no
+    /// geometry that reads (every corner then estimated), a share of the
+    /// side; `None` when the tag was too small or too hidden for the fit
+    /// and its corners are the side lines' intersections.
     pub corner_sigma: Option<[f64; 4]>,
     /// Reed-Solomon symbols corrected while decoding: 0 for a clean read;
     /// filter on it for confidence. For a tag read by likelihood
@@ -105,7 +108,9 @@ pub struct Detection {
     /// codeword, cell by cell or as the blur shows it, clearly better than
     /// any other id. Such a reading is
     /// reported only when the fit of the tag's model to its edges confirms
-    /// its geometry (`corner_sigma` is then set).
+    /// its geometry, or, on a tag placed by its aligned print whose fit
+    /// found nothing that reads, with every corner estimated
+    /// (`corner_sigma` is set either way).
     pub likelihood: bool,
     /// Read as under an occluder: a likelihood reading by its nearest
     /// codeword cell by cell, or a code reading under glare resting on
@@ -134,6 +139,11 @@ pub struct Detection {
     /// kept only as a last resort.
     #[serde(skip)]
     pub(crate) shaded: bool,
+    /// Placed on the aligned print with no fit of the model confirming it
+    /// (`decoding::unfitted_on_aligned`): every corner estimated, its
+    /// sigma a share of the side; kept only as a last resort.
+    #[serde(skip)]
+    pub(crate) unfitted: bool,
     /// Image of the tag center (intersection of the diagonals).
     pub center: [f64; 2],
     /// Measured contrast between the tag's white and black (grey levels).
@@ -479,7 +489,9 @@ fn rim_inside<'a>(
 /// not decoded (`foreign`, see [`decoding::Decoded::foreign`]), decoded in
 /// the rims' order, at most `budget`, and no further once
 /// [`RIM_MAX_FAILED_RUN`] in a row have read nothing. Returns the tags
-/// found and the candidates decoded.
+/// found, the readings that stand only as last resorts
+/// ([`decoding::last_resorts`]; see `decoding::unfitted_on_aligned`) and
+/// the candidates decoded.
 #[allow(clippy::too_many_arguments)]
 fn rim_look(
     img: &GrayView<'_>,
@@ -491,7 +503,7 @@ fn rim_look(
     rims: &[ellipses::Ellipse],
     found: &[decoding::Found],
     foreign: &[decoding::Quad],
-) -> (Vec<decoding::Found>, usize) {
+) -> (Vec<decoding::Found>, Vec<decoding::Found>, usize) {
     // The smallest data square a rim reading may have (see
     // `decoding::RIM_MIN_CELL_PX`), less the rim's own uncertainty: a
     // rim too small for every family is not decoded.
@@ -524,7 +536,16 @@ fn rim_look(
     };
     let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
     ws.rim_cands = cands;
-    (out.found, out.attempts)
+    // Of its last resorts, only the readings placed on the aligned print
+    // with no fit confirming them: its shaded readings are left out (with
+    // them the wild set gained 40 markers, two with a corner over 3 px off
+    // at a sigma of 0.65 and 2.4 px).
+    let last = out
+        .last_resort
+        .into_iter()
+        .filter(|f| f.detection().unfitted)
+        .collect();
+    (out.found, last, out.attempts)
 }
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
@@ -984,9 +1005,10 @@ impl Detector {
                     rims: &[ellipses::Ellipse],
                     found: &[decoding::Found],
                     attempts: &mut usize,
-                    rim_decodes: &mut usize| {
+                    rim_decodes: &mut usize,
+                    last_resort: &mut Vec<decoding::Found>| {
             let budget = p.decoding.max_attempts.saturating_sub(*attempts);
-            let (more, n) = rim_look(
+            let (more, last, n) = rim_look(
                 &img,
                 scale,
                 budget,
@@ -999,11 +1021,19 @@ impl Detector {
             );
             *attempts += n;
             *rim_decodes += n;
+            last_resort.extend(last);
             more
         };
         let covered = {
             let rims = std::mem::take(&mut ws.rims);
-            let more = look(ws, &rims, &found, &mut attempts, &mut st.rim_decodes);
+            let more = look(
+                ws,
+                &rims,
+                &found,
+                &mut attempts,
+                &mut st.rim_decodes,
+                &mut last_resort,
+            );
             let covered: Vec<ellipses::Ellipse> = rims
                 .iter()
                 .filter(|e| rim_inside(e, scale, found.iter().map(|f| &f.detection().corners)))
@@ -1035,7 +1065,14 @@ impl Detector {
             .filter(|e| !rim_inside(e, scale, out.iter().map(|d| &d.corners)))
             .collect();
         if !orphans.is_empty() {
-            let more = look(ws, &orphans, &[], &mut attempts, &mut st.rim_decodes);
+            let more = look(
+                ws,
+                &orphans,
+                &[],
+                &mut attempts,
+                &mut st.rim_decodes,
+                &mut last_resort,
+            );
             out.extend(decoding::verify_all(
                 &img,
                 decoding::one_per_tag(more),
