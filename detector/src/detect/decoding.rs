@@ -156,6 +156,9 @@ pub(super) enum Outcome {
     /// Read to nothing that stands now, but to a reading that stands as
     /// a last resort ([`Decoded::last_resort`]).
     LastResort(Box<Reading>),
+    /// Read, and to a last resort besides, kept in case verification
+    /// drops the reading (the rim look's `unfitted_on_aligned`).
+    ReadKeeping(Box<Reading>, Box<Reading>),
 }
 
 /// A quad's corners (full-resolution px).
@@ -466,12 +469,20 @@ fn rim_attempt(
             det,
             outline: false,
         });
-    match (reading, unfitted.into_inner().or(shaded.into_inner())) {
-        (None, Some(det)) => Outcome::LastResort(Box::new(Reading {
+    let aside = |det| {
+        Box::new(Reading {
             det,
             outline: false,
-        })),
-        (reading, _) => Outcome::Read(reading.map(Box::new)),
+        })
+    };
+    // A reading that stood after the aligned print's own did not (at a
+    // small move of the print, or on the refined quad) keeps that one as
+    // a last resort: the verify stage may drop it (on the wild set 5
+    // markers were lost so, on the calibration set 3).
+    match (reading, unfitted.into_inner(), shaded.into_inner()) {
+        (None, Some(det), _) | (None, None, Some(det)) => Outcome::LastResort(aside(det)),
+        (Some(r), Some(det), _) => Outcome::ReadKeeping(Box::new(r), aside(det)),
+        (reading, ..) => Outcome::Read(reading.map(Box::new)),
     }
 }
 
@@ -609,9 +620,9 @@ fn rim_reading_stands(
 /// on the aligned print with no fit confirming it ([`unfitted_on_aligned`]).
 /// [`RIM_SIGMA_OF_SIDE`], the floor of a rim reading's sigma on top of its
 /// fit's, and a fifth more, with no fit to add its own. On the calibration
-/// set (`make calibrate-sigma`) the 6 markers found so had corners at most
+/// set (`make calibrate-sigma`) the 9 markers found so had corners at most
 /// 0.026 of their side off, all within twice this sigma (too few to choose
-/// a share by); on the wild set 135 of the 136 corners of its 34.
+/// a share by); on the wild set 155 of the 156 corners of its 39.
 const UNFITTED_SIGMA_OF_SIDE: f64 = 0.03;
 
 /// The rim look's reading `d` made on the aligned print's corners, when the
@@ -1075,6 +1086,15 @@ pub(super) fn decode_in_order(
                 attempts += 1;
                 in_vain = if best.is_some() { 0 } else { in_vain + 1 };
                 take_reading(&mut found, rival, best.map(|b| *b));
+            }
+            (rival, Outcome::ReadKeeping(best, r)) => {
+                attempts += 1;
+                in_vain = 0;
+                take_reading(&mut found, rival, Some(*best));
+                last_resort.push(Found {
+                    reading: *r,
+                    rivals: 0,
+                });
             }
             // Decoded to nothing that stands now.
             (rival, Outcome::LastResort(r)) => {
@@ -1819,6 +1839,43 @@ mod tests {
             guessed: false,
             rim: None,
         }
+    }
+
+    #[test]
+    fn a_reading_kept_with_a_last_resort_hands_on_both() {
+        let p = params();
+        let (a, b) = (square([100.0, 100.0], 40.0), square([300.0, 100.0], 40.0));
+        let cands = [candidate(a, 1.0), candidate(b, 1.0)];
+        let reading = |q| {
+            Box::new(Reading {
+                det: Detection {
+                    center: centroid(&q),
+                    ..found(q, 3).reading.det
+                },
+                outline: false,
+            })
+        };
+        let out = decode_in_order(
+            &cands,
+            1.0,
+            &p,
+            |j, _| match j {
+                0 => Outcome::ReadKeeping(reading(a), reading(a)),
+                _ => Outcome::LastResort(reading(b)),
+            },
+            |_, _, _| {},
+        );
+        // The reading is found, its fallback and the other candidate's
+        // reading wait as last resorts; both count as decoded.
+        assert_eq!(out.found.len(), 1);
+        assert_eq!(out.found[0].detection().corners, a);
+        let last: Vec<_> = out
+            .last_resort
+            .iter()
+            .map(|f| f.detection().corners)
+            .collect();
+        assert_eq!(last, vec![a, b]);
+        assert_eq!(out.attempts, 2);
     }
 
     #[test]

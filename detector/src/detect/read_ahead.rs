@@ -354,7 +354,10 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
                 |j, _| {
                     let left = p.max_attempts.saturating_sub(attempts);
                     let o = shared.outcome_of(j, left, &wanted, &read);
-                    attempts += usize::from(matches!(o, Outcome::Read(_) | Outcome::LastResort(_)));
+                    attempts += usize::from(matches!(
+                        o,
+                        Outcome::Read(_) | Outcome::LastResort(_) | Outcome::ReadKeeping(..)
+                    ));
                     o
                 },
                 |j, found, foreign| shared.taken(j, found, foreign),
