@@ -536,16 +536,7 @@ fn rim_look(
     };
     let out = decoding::decode_candidates(img, &cands, scale, targets, &params, &mut ws.rscratch);
     ws.rim_cands = cands;
-    // Of its last resorts, only the readings placed on the aligned print
-    // with no fit confirming them: its shaded readings are left out (with
-    // them the wild set gained 40 markers, two with a corner over 3 px off
-    // at a sigma of 0.65 and 2.4 px).
-    let last = out
-        .last_resort
-        .into_iter()
-        .filter(|f| f.detection().unfitted)
-        .collect();
-    (out.found, last, out.attempts)
+    (out.found, out.last_resort, out.attempts)
 }
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
