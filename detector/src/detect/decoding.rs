@@ -586,9 +586,7 @@ fn rim_reading_stands(
         Verdict::Fitted(v) => v,
         _ => return None,
     };
-    if rim::rim_disagreement(&v.homography, e, scale) > RIM_AGREEMENT_OF_SIDE
-        || mean_side(&v.corners) < RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64
-    {
+    if !rim_geometry_agrees(&v.homography, &v.corners, t, e, scale) {
         return None;
     }
     let Some(aligned) = aligned else {
@@ -601,6 +599,21 @@ fn rim_reading_stands(
         });
     };
     on_aligned_print(d, &v, aligned)
+}
+
+/// Whether a rim reading's geometry, `h` and the data square `corners` it
+/// maps, of target `t`'s family, puts the disc rim where it was measured
+/// (`e`, of the look of scale `scale`: [`RIM_AGREEMENT_OF_SIDE`]) and has
+/// cells of at least [`RIM_MIN_CELL_PX`].
+fn rim_geometry_agrees(
+    h: &Homography,
+    corners: &[[f64; 2]; 4],
+    t: &Target,
+    e: &super::ellipses::Ellipse,
+    scale: f64,
+) -> bool {
+    !(rim::rim_disagreement(h, e, scale) > RIM_AGREEMENT_OF_SIDE
+        || mean_side(corners) < RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64)
 }
 
 /// Share of the side that is the sigma of each corner of a reading placed
@@ -631,12 +644,10 @@ fn unfitted_on_aligned(
     scale: f64,
 ) -> Option<Detection> {
     let t = target_of(targets, &d)?;
-    let side = mean_side(&d.corners);
-    if side < RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64
-        || rim::rim_disagreement(&d.homography, e, scale) > RIM_AGREEMENT_OF_SIDE
-    {
+    if !rim_geometry_agrees(&d.homography, &d.corners, t, e, scale) {
         return None;
     }
+    let side = mean_side(&d.corners);
     Some(Detection {
         estimated: [true; 4],
         corner_sigma: Some([UNFITTED_SIGMA_OF_SIDE * side; 4]),
