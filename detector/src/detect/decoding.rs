@@ -1734,6 +1734,7 @@ mod tests {
             anchor: c,
             checker: false,
             axis: [1.0, 0.0],
+            pieced: false,
         }
     }
 

@@ -290,6 +290,7 @@ impl StageParams {
                 min_minor: cfg.ellipse_min_minor,
                 min_arc_points: ellipses::RIM_BORDER_FACTOR * cfg.min_contour_points,
                 max_rms: cfg.ellipse_max_rms,
+                pair_fragments: true,
             },
             quads: quads::QuadParams {
                 min_side: cfg.quad_min_side,
@@ -425,6 +426,10 @@ impl Segmentation {
             &mut self.escratch,
             &mut self.ellipses,
         );
+        // A rim from fragments alone stands only where the image shows a
+        // dark disc on white around it.
+        self.ellipses
+            .retain(|e| !e.pieced || rim::stands_out(img, e, work.scale));
         ellipses::find_anchors(&self.contours, &mut self.ellipses);
         times.ellipses += laps.lap();
         quads::find_candidates(
@@ -813,10 +818,14 @@ impl Detector {
         } else {
             None
         };
+        // The small-tag look pairs no rim fragments (see
+        // `ellipses::EllipseParams::pair_fragments`).
+        let mut full_params = StageParams::new(&full);
+        full_params.ellipses.pair_fragments = false;
         Ok(Self {
             workers,
             params: StageParams::new(&config),
-            full_params: StageParams::new(&full),
+            full_params,
             config,
             targets,
             ws: Workspace::default(),

@@ -848,6 +848,7 @@ mod tests {
             anchor: CENTRE,
             checker: true,
             axis: [1.0, 0.0],
+            pieced: false,
         }
     }
 

@@ -144,6 +144,60 @@ fn looks_printed(img: &GrayView<'_>, at: &dyn Fn(f64, f64) -> [f64; 2]) -> bool 
         && spread <= INSIDE_SPREAD.1
 }
 
+/// Points around a rim at which [`stands_out`] compares the two sides.
+const STAND_OUT_POINTS: usize = 32;
+
+/// Where [`stands_out`] samples inside and outside a rim, as shares of
+/// its radii from its centre: 0.8 in the black disc, 1.15 in the white
+/// around it (the annulus and the print's border reach 1.22 of the rim's
+/// radius), each clear of the rim's own blurred edge on small tags.
+/// Measured on the wild set against 0.88 / 1.08: of the pairs' ellipses at
+/// true rims, 92 of 98 kept instead of 85.
+const STAND_OUT_RADII: (f64, f64) = (0.8, 1.15);
+
+/// Least median, over the points, of the grey level outside the rim less
+/// the level inside (grey levels), ...
+const STAND_OUT_MIN_CONTRAST: f64 = 4.0;
+
+/// ... and least share of points where outside is the lighter: a stick
+/// across the disc darkens the outside where it leaves, and at 30-40%
+/// coverage of a rim's half.
+const STAND_OUT_MIN_SHARE: f64 = 0.5;
+
+/// Whether the rim `e` (working coordinates, `scale` full px per working
+/// px) is the edge of a dark disc on white in `img`: the median contrast
+/// across it and the share of points lighter outside (see
+/// [`STAND_OUT_MIN_CONTRAST`], [`STAND_OUT_MIN_SHARE`]). For rims fitted
+/// to fragments alone (`ellipses::group_fragments`): on the wild set's
+/// 3000 frames, of their ellipses 98 lay at a true rim and 92 of them
+/// passed; of the 6394 others, about 1700.
+pub(crate) fn stands_out(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> bool {
+    let c = to_full(e.centre, scale);
+    let (a, b) = (e.a * scale, e.b * scale);
+    let (u, v) = (e.axis, [-e.axis[1], e.axis[0]]);
+    let mut diffs: Vec<f64> = Vec::with_capacity(STAND_OUT_POINTS);
+    for k in 0..STAND_OUT_POINTS {
+        let t = std::f64::consts::TAU * k as f64 / STAND_OUT_POINTS as f64;
+        let (x, y) = (a * t.cos(), b * t.sin());
+        let at = |f: f64| {
+            sample_bilinear(
+                img,
+                c[0] + f * (x * u[0] + y * v[0]),
+                c[1] + f * (x * u[1] + y * v[1]),
+            )
+        };
+        if let (Some(inside), Some(outside)) = (at(STAND_OUT_RADII.0), at(STAND_OUT_RADII.1)) {
+            diffs.push(outside - inside);
+        }
+    }
+    if diffs.is_empty() {
+        return false;
+    }
+    let lighter = diffs.iter().filter(|&&d| d > 0.0).count() as f64 / diffs.len() as f64;
+    diffs.sort_by(f64::total_cmp);
+    diffs[diffs.len() / 2] >= STAND_OUT_MIN_CONTRAST && lighter >= STAND_OUT_MIN_SHARE
+}
+
 /// The longest and the shortest side (px) the square that rim `e`
 /// (working coordinates, `scale` full px per working px) predicts may have
 /// ([`rim_quad`]): its axes over the rim's radius, the singular values of
@@ -440,6 +494,7 @@ mod tests {
             anchor: CENTRE,
             checker: false,
             axis: [th.cos(), th.sin()],
+            pieced: false,
         };
         let corners = crate::geometry::CORNERS.map(|[u, v]| {
             [
@@ -479,6 +534,34 @@ mod tests {
                 "turn {turn}: {q:?} vs {truth:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_rim_stands_out_where_a_dark_disc_meets_white() {
+        let (img, e, _) = tag(affine(1.1, 0.7, 0.4), false);
+        assert!(stands_out(&GrayView::from(&img), &e, 1.0));
+        // The same rim over a light disc on grey, and over a flat grey.
+        let c = e.centre;
+        let inside = |x: u32, y: u32| {
+            let (dx, dy) = (f64::from(x) - c[0], f64::from(y) - c[1]);
+            let (u, v) = (
+                dx * e.axis[0] + dy * e.axis[1],
+                -dx * e.axis[1] + dy * e.axis[0],
+            );
+            (u / e.a).powi(2) + (v / e.b).powi(2) <= 1.0
+        };
+        let light = GrayImage::from_fn(img.width(), img.height(), |x, y| {
+            image::Luma([if inside(x, y) { 220 } else { 90 }])
+        });
+        assert!(!stands_out(&GrayView::from(&light), &e, 1.0));
+        let flat = GrayImage::from_pixel(img.width(), img.height(), image::Luma([128]));
+        assert!(!stands_out(&GrayView::from(&flat), &e, 1.0));
+        // A dark bar across half the rim leaves the rest to show it.
+        let barred = GrayImage::from_fn(img.width(), img.height(), |x, y| {
+            let p = img.get_pixel(x, y)[0];
+            image::Luma([if f64::from(y) > c[1] + 8.0 { 30 } else { p }])
+        });
+        assert!(stands_out(&GrayView::from(&barred), &e, 1.0));
     }
 
     #[test]

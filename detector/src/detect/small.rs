@@ -423,6 +423,7 @@ mod tests {
             anchor: centre,
             checker: false,
             axis: [1.0, 0.0],
+            pieced: false,
         }
     }
 
