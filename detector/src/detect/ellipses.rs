@@ -534,10 +534,8 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
     let pieces: Vec<Piece> = frags
         .iter()
         .map(|f| {
-            let border = contours.points_of(&contours.list[f.contour as usize]);
-            let n = border.len();
             let r0 = pts.len();
-            pts.extend((0..f.len as usize).map(|k| fp(border[(f.start as usize + k) % n])));
+            pts.extend(border_run(contours, f.contour, f.start, f.len));
             let chord = sub(pts[pts.len() - 1], pts[r0]);
             Piece {
                 range: r0..pts.len(),
@@ -551,7 +549,8 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
     let mut by_x: Vec<usize> = (0..frags.len()).collect();
     by_x.sort_by(|&i, &j| pieces[i].mid[0].total_cmp(&pieces[j].mid[0]));
     let xs: Vec<f64> = by_x.iter().map(|&i| pieces[i].mid[0]).collect();
-    let longest = pieces.iter().map(|f| f.length).fold(0.0, f64::max);
+    // No pair is farther apart than this (see FRAG_REACH).
+    let window = FRAG_REACH * pieces.iter().map(|f| f.length).fold(0.0, f64::max);
     let min_points = (params.min_arc_points / ARC_SHARE) as u32;
     let mut used = vec![false; frags.len()];
     let mut order: Vec<usize> = (0..frags.len()).collect();
@@ -561,7 +560,6 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
             continue;
         }
         let fi = &pieces[i];
-        let window = FRAG_REACH * fi.length.max(longest);
         let lo = xs.partition_point(|&x| x < fi.mid[0] - window);
         let hi = xs.partition_point(|&x| x <= fi.mid[0] + window);
         let mut best: Option<(usize, Conic)> = None;
@@ -627,6 +625,19 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
     scratch.frags = frags;
 }
 
+/// The `len` points of border `contour` from point `start` on (indices
+/// modulo the border's length): an arc's or a fragment's.
+fn border_run(
+    contours: &Contours,
+    contour: u32,
+    start: u32,
+    len: u32,
+) -> impl Iterator<Item = [f64; 2]> + '_ {
+    let pts = contours.points_of(&contours.list[contour as usize]);
+    let n = pts.len();
+    (0..len as usize).map(move |k| fp(pts[(start as usize + k) % n]))
+}
+
 fn merge(
     contours: &Contours,
     params: &EllipseParams,
@@ -661,12 +672,9 @@ fn merge(
             scratch.pts.clear();
             for &j in &members {
                 let a = arcs[j];
-                let c = &contours.list[a.contour as usize];
-                let pts = contours.points_of(c);
-                let n = pts.len();
                 scratch
                     .pts
-                    .extend((0..a.len as usize).map(|k| fp(pts[(a.start as usize + k) % n])));
+                    .extend(border_run(contours, a.contour, a.start, a.len));
             }
             if let Some(f) = fit_ellipse(&scratch.pts) {
                 if accept(&f, params) {

@@ -148,7 +148,8 @@ fn looks_printed(img: &GrayView<'_>, at: &dyn Fn(f64, f64) -> [f64; 2]) -> bool 
 const STAND_OUT_POINTS: usize = 32;
 
 /// Where [`stands_out`] samples inside and outside a rim, as shares of
-/// its radii from its centre: 0.8 in the black disc, 1.15 in the white
+/// its fitted radii (the border's, without [`RIM_BORDER_OFFSET`]) from its
+/// centre: 0.8 in the black disc, 1.15 in the white
 /// around it (the annulus and the print's border reach 1.22 of the rim's
 /// radius), each clear of the rim's own blurred edge on small tags.
 /// Measured on the wild set against 0.88 / 1.08: of the pairs' ellipses at
