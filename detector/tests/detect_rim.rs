@@ -80,3 +80,22 @@ fn printed_text_is_not_decoded_letter_after_letter() {
 fn rims_left_in_pieces_are_found() {
     assert_eq!(crops_found("pieced-rim-crops.csv", 1.0).len(), 5);
 }
+
+/// Two tags of the wild set, one under flush tape, one under a glare
+/// (`fixtures/wild/aligned-refine-crops.csv`, 37 and 30 px), whose rim
+/// look aligned the print a pixel or two off, where neither the aligned
+/// square nor its small moves read, and whose predicted quad refined
+/// 2.5-4 px from the print (along the tape's edge, the glare's). Refined
+/// from the aligned print instead, the square reads, every corner within
+/// 2 px.
+#[test]
+fn a_rim_whose_prediction_refines_astray_is_read_from_the_aligned_print() {
+    let found = crops_found("aligned-refine-crops.csv", 2.0);
+    assert_eq!(found.len(), 2);
+    // Each has a corner the fit estimates (hidden or washed out) and a
+    // sigma for every corner.
+    for d in &found {
+        assert!(d.estimated.iter().any(|&e| e), "{d:?}");
+        assert!(d.corner_sigma.is_some(), "{d:?}");
+    }
+}

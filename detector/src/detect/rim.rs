@@ -355,14 +355,7 @@ impl RimSeen {
 /// parallelogram).
 pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Option<Candidate> {
     let (q, predicted) = rim_quad(img, e, scale)?;
-    let o = (scale - 1.0) / 2.0;
-    let w = q.map(|p| [(p[0] - o) / scale, (p[1] - o) / scale]);
-    let edges = std::array::from_fn(|k| {
-        Some(Edges {
-            incoming: [w[(k + 3) % 4], w[k]],
-            outgoing: [w[k], w[(k + 1) % 4]],
-        })
-    });
+    let (w, edges) = sides_of(&q, scale);
     let area = 0.5
         * ((w[2][0] - w[0][0]) * (w[3][1] - w[1][1]) - (w[3][0] - w[1][0]) * (w[2][1] - w[0][1]))
             .abs();
@@ -380,6 +373,34 @@ pub(crate) fn rim_candidate(img: &GrayView<'_>, e: &Ellipse, scale: f64) -> Opti
             predicted,
         }),
     })
+}
+
+/// Rim candidate `cand` moved onto the quad `q` (full-resolution px):
+/// its corners and its four sides, the edge pieces refinement measures
+/// the sides along, are `q`'s. For refining the aligned print's square
+/// instead of the rim's prediction.
+pub(crate) fn moved_to(cand: &Candidate, q: &Quad, scale: f64) -> Candidate {
+    let (corners, edges) = sides_of(q, scale);
+    Candidate {
+        corners,
+        edges,
+        ..*cand
+    }
+}
+
+/// The corners of the full-resolution quad `q` in working coordinates
+/// (`scale` full px per working px) and its four sides as each corner's
+/// incoming and outgoing edge pieces.
+fn sides_of(q: &Quad, scale: f64) -> (Quad, [Option<Edges>; 4]) {
+    let o = (scale - 1.0) / 2.0;
+    let w = q.map(|p| [(p[0] - o) / scale, (p[1] - o) / scale]);
+    let edges = std::array::from_fn(|k| {
+        Some(Edges {
+            incoming: [w[(k + 3) % 4], w[k]],
+            outgoing: [w[k], w[(k + 1) % 4]],
+        })
+    });
+    (w, edges)
 }
 
 /// Points of the printed rim checked against the measured one by
