@@ -19,10 +19,10 @@
 //! other side's line (see [`gap_corner`]); gap corners are looked for only
 //! around linked borders, and only the linked quad search uses them.
 //!
-//! Pairs are found without comparing every two lines: lines are sorted by
-//! the x of their start and of their end point, and each line looks only
-//! at the lines whose facing end lies within its reach in x. Each pair is
-//! seen once, from its longer line.
+//! Pairs are found without comparing every two lines: the start and the
+//! end points of the lines are bucketed in square cells ([`EndGrid`]), and
+//! each line looks only at the lines whose facing end lies within its
+//! reach. Each pair is seen once, from its longer line.
 
 use super::corners::{Corner, CornerParams, REACH_PER_GAP};
 use super::lines::{Line, Polygons};
@@ -71,16 +71,20 @@ pub(crate) struct Links {
     border_parent: Vec<u32>,
     /// Per border: whether a bridge joins it to another border.
     bridged: Vec<bool>,
-    /// Line indices sorted by the x of their start point.
-    by_start: Vec<u32>,
-    /// Line indices sorted by the x of their end point.
-    by_end: Vec<u32>,
+    /// The lines' start points in cells.
+    start_grid: EndGrid,
+    /// The lines' end points in cells.
+    end_grid: EndGrid,
     /// Per line: its border.
     border_of: Vec<u32>,
+    /// Per line: its length (px).
+    lengths: Vec<f64>,
+    /// Per line: the longest line of its linked component (gap corners).
+    line_longest: Vec<f64>,
     /// Line pairs bridged.
     pairs: Vec<(u32, u32)>,
-    /// Gap corners found: incoming line, outgoing line, position.
-    gaps: Vec<(u32, u32, [f64; 2])>,
+    /// Gap corners found, in the order they are added ([`GapFound`]).
+    gaps: Vec<GapFound>,
     /// Per linked component (at its root border): its longest line.
     longest: Vec<f64>,
 }
@@ -149,57 +153,195 @@ fn same_way(a: &Line, b: &Line) -> bool {
     dot(a.dir, b.dir) >= BRIDGE_MAX_TURN_DEG.to_radians().cos()
 }
 
-/// The longer of two lines sees their pair (ties: the lower index).
-fn sees(lines: &[Line], a: usize, b: usize) -> bool {
-    let (la, lb) = (length(&lines[a]), length(&lines[b]));
+/// The longer of two lines (of `lengths`) sees their pair (ties: the
+/// lower index).
+fn sees(lengths: &[f64], a: usize, b: usize) -> bool {
+    let (la, lb) = (lengths[a], lengths[b]);
     la > lb || (la == lb && a < b)
 }
 
-/// Lines `order` (sorted by `key`) whose key lies within `r` of `x`.
-fn window<'a>(
-    lines: &[Line],
-    order: &'a [u32],
-    key: fn(&Line) -> f64,
-    x: f64,
-    r: f64,
-) -> &'a [u32] {
-    let lo = order.partition_point(|&i| key(&lines[i as usize]) < x - r);
-    let hi = order.partition_point(|&i| key(&lines[i as usize]) <= x + r);
-    &order[lo..hi]
+/// Side (px) of the cells of an [`EndGrid`]: about the reach of a short
+/// line (a line of tau = 8 px reaches 7 px), so that a short line looks at
+/// a few cells and a long one at the cells of its own reach.
+const END_CELL_PX: f64 = 16.0;
+
+/// Margin (px) an [`EndGrid`] search adds to its reach: far above the
+/// rounding of image coordinates, far below a pixel.
+const END_MARGIN_PX: f64 = 1e-6;
+
+/// Most cells an [`EndGrid`] has along one axis; past that its cells grow
+/// (only absurd coordinates get there: a 4K working image has 240).
+const END_MAX_CELLS: f64 = 1024.0;
+
+/// The start or the end points of the lines, bucketed in square cells,
+/// so that the points near a point are found without scanning the frame
+/// (a cluttered 1080p frame has about a thousand lines). Written here, not
+/// taken from a spatial-index crate: a counting sort into cells is a few
+/// lines, and the search needs no more.
+#[derive(Debug, Default)]
+struct EndGrid {
+    /// Corner of cell (0, 0), px.
+    origin: [f64; 2],
+    /// Side of a cell, px.
+    cell: f64,
+    cols: usize,
+    rows: usize,
+    /// Per cell, row by row: where its run of `lines` starts (one entry
+    /// more than cells).
+    first: Vec<u32>,
+    /// The lines whose point lies in each cell, cell by cell.
+    lines: Vec<u32>,
+    /// Scratch of the counting sort: the next free place of each cell.
+    next: Vec<u32>,
 }
 
-/// Whether `q` lies within `r` of `p` in y (the window already holds x).
-/// Calls `visit(y, from, to)` for every line `y` whose end faces an end of
-/// line `x` within `r` and which `x` sees ([`sees`]): first the lines
-/// starting near `x`'s end (`from` = `x`, `to` = `y`), then those ending
-/// near its start (`from` = `y`, `to` = `x`), each in the order of
-/// `by_start` or `by_end`. The one neighbour search of the bridges and the
-/// gap corners.
+impl EndGrid {
+    /// Fills the grid with `point` of every line. Points that are not
+    /// finite are left out (no reach holds them).
+    fn fill(&mut self, lines: &[Line], point: fn(&Line) -> [f64; 2]) {
+        let finite = |q: [f64; 2]| q[0].is_finite() && q[1].is_finite();
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for q in lines.iter().map(point).filter(|&q| finite(q)) {
+            for k in 0..2 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+            }
+        }
+        self.first.clear();
+        self.lines.clear();
+        if lo[0] > hi[0] {
+            (self.cols, self.rows) = (0, 0);
+            return;
+        }
+        self.origin = lo;
+        self.cell = END_CELL_PX.max((hi[0] - lo[0]).max(hi[1] - lo[1]) / END_MAX_CELLS);
+        self.cols = ((hi[0] - lo[0]) / self.cell) as usize + 1;
+        self.rows = ((hi[1] - lo[1]) / self.cell) as usize + 1;
+        let (origin, cell, cols, rows) = (self.origin, self.cell, self.cols, self.rows);
+        let cell_of = |q: [f64; 2]| {
+            let at = |k: usize, n: usize| (((q[k] - origin[k]) / cell) as usize).min(n - 1);
+            at(1, rows) * cols + at(0, cols)
+        };
+        self.first.resize(cols * rows + 1, 0);
+        for q in lines.iter().map(point).filter(|&q| finite(q)) {
+            self.first[cell_of(q) + 1] += 1;
+        }
+        for c in 1..self.first.len() {
+            self.first[c] += self.first[c - 1];
+        }
+        self.next.clear();
+        self.next.extend_from_slice(&self.first);
+        self.lines.resize(self.first[cols * rows] as usize, 0);
+        for (l, line) in lines.iter().enumerate() {
+            let q = point(line);
+            if finite(q) {
+                let c = cell_of(q);
+                self.lines[self.next[c] as usize] = l as u32;
+                self.next[c] += 1;
+            }
+        }
+    }
+
+    /// The cells `lo..=hi` along an axis of `n` cells starting at
+    /// `origin` that can hold coordinates from `from` to `to`, if any.
+    fn span(&self, from: f64, to: f64, origin: f64, n: usize) -> Option<(usize, usize)> {
+        let (a, b) = ((from - origin) / self.cell, (to - origin) / self.cell);
+        // Also false for NaN.
+        if !(b >= 0.0 && a < n as f64) {
+            return None;
+        }
+        Some((a.max(0.0) as usize, (b as usize).min(n - 1)))
+    }
+
+    /// Calls `visit` with every line whose point can lie within `r` of `p`
+    /// in x and in y (a superset: the caller checks), in no useful order.
+    fn near(&self, p: [f64; 2], r: f64, mut visit: impl FnMut(usize)) {
+        // A hair wider than `r`, so that rounding at the bounds cannot
+        // leave out a point the caller's check would keep.
+        let r = r + END_MARGIN_PX;
+        let Some((x0, x1)) = self.span(p[0] - r, p[0] + r, self.origin[0], self.cols) else {
+            return;
+        };
+        let Some((y0, y1)) = self.span(p[1] - r, p[1] + r, self.origin[1], self.rows) else {
+            return;
+        };
+        for row in y0..=y1 {
+            let (c0, c1) = (row * self.cols + x0, row * self.cols + x1);
+            for &l in &self.lines[self.first[c0] as usize..self.first[c1 + 1] as usize] {
+                visit(l as usize);
+            }
+        }
+    }
+}
+
+/// Whether `q` lies within `r` of `p` in x and in y (in x from `p - r`
+/// to `p + r` as computed, as a band of a list sorted by x was cut when
+/// the search took such bands: the corners found did not change).
+fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
+    q[0] >= p[0] - r && q[0] <= p[0] + r && (q[1] - p[1]).abs() <= r
+}
+
+/// Which end of a line `y` faced line `x` in [`facing`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+enum Facing {
+    /// `y` starts near `x`'s end: `x` then `y`.
+    Ahead,
+    /// `y` ends near `x`'s start: `y` then `x`.
+    Behind,
+}
+
+/// Calls `visit(y, from, to, side)` for every line `y` whose end faces an
+/// end of line `x` within `r` (in x and in y) and which `x` sees
+/// ([`sees`]): the lines starting near `x`'s end (`from` = `x`, `to` =
+/// `y`, [`Facing::Ahead`]) and those ending near its start (`from` = `y`,
+/// `to` = `x`, [`Facing::Behind`]), in no useful order. The one neighbour
+/// search of the bridges and the gap corners.
 fn facing(
     lines: &[Line],
-    by_start: &[u32],
-    by_end: &[u32],
+    links: &Links,
     x: usize,
     r: f64,
-    mut visit: impl FnMut(usize, usize, usize),
+    mut visit: impl FnMut(usize, usize, usize, Facing),
 ) {
     let lx = &lines[x];
-    for &y in window(lines, by_start, |l| l.ps[0], lx.pe[0], r) {
-        let y = y as usize;
-        if within(lines[y].ps, lx.pe, r) && y != x && sees(lines, x, y) {
-            visit(y, x, y);
+    links.start_grid.near(lx.pe, r, |y| {
+        if within(lines[y].ps, lx.pe, r) && y != x && sees(&links.lengths, x, y) {
+            visit(y, x, y, Facing::Ahead);
         }
-    }
-    for &y in window(lines, by_end, |l| l.pe[0], lx.ps[0], r) {
-        let y = y as usize;
-        if within(lines[y].pe, lx.ps, r) && y != x && sees(lines, x, y) {
-            visit(y, y, x);
+    });
+    links.end_grid.near(lx.ps, r, |y| {
+        if within(lines[y].pe, lx.ps, r) && y != x && sees(&links.lengths, x, y) {
+            visit(y, y, x, Facing::Behind);
         }
-    }
+    });
 }
 
-fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
-    (q[1] - p[1]).abs() <= r
+/// A gap corner found between line `x` and a line `y` facing it.
+#[derive(Debug)]
+struct GapFound {
+    x: u32,
+    side: Facing,
+    /// The x of `y`'s facing end.
+    key: f64,
+    y: u32,
+    /// Incoming and outgoing line.
+    lines: [u32; 2],
+    /// Where they meet.
+    pos: [f64; 2],
+}
+
+impl GapFound {
+    /// The order gap corners are added in, the same on any thread count:
+    /// by line `x`, lines ahead of it before lines behind, then by the x
+    /// of the facing end (ties by line), as a search along the lines
+    /// sorted by x would meet them. The quad search takes corners in
+    /// their order.
+    fn order(a: &Self, b: &Self) -> std::cmp::Ordering {
+        (a.x, a.side)
+            .cmp(&(b.x, b.side))
+            .then(a.key.total_cmp(&b.key))
+            .then(a.y.cmp(&b.y))
+    }
 }
 
 /// Fewest lines in one piece of the parallel neighbour searches of
@@ -207,8 +349,9 @@ fn within(q: [f64; 2], p: [f64; 2], r: f64) -> bool {
 const MIN_LINES_PER_PIECE: usize = 256;
 
 /// Finds the bridges between the lines of `polys` and fills `out`; the
-/// neighbour search on `workers`' threads if given (in runs of lines, the
-/// same pairs in the same order either way).
+/// neighbour search on `workers`' threads if given (in runs of lines; the
+/// chains and components do not depend on the order the pairs are found
+/// in, [`union`] keeps the lowest index as root).
 pub(crate) fn find_bridges<W: Default + Send>(
     polys: &Polygons,
     workers: Option<&Workers<W>>,
@@ -221,30 +364,27 @@ pub(crate) fn find_bridges<W: Default + Send>(
     for (c, &(l0, l1)) in polys.line_ranges.iter().enumerate() {
         out.border_of[l0 as usize..l1 as usize].fill(c as u32);
     }
+    out.lengths.clear();
+    out.lengths.extend(lines.iter().map(length));
     out.line_parent.clear();
     out.line_parent.extend(0..n as u32);
     out.border_parent.clear();
     out.border_parent.extend(0..polys.line_ranges.len() as u32);
     out.bridged.clear();
     out.bridged.resize(polys.line_ranges.len(), false);
-    let sort = |order: &mut Vec<u32>, key: fn(&Line) -> f64| {
-        order.clear();
-        order.extend(0..n as u32);
-        order.sort_by(|&i, &j| key(&lines[i as usize]).total_cmp(&key(&lines[j as usize])));
-    };
     join(
         workers,
-        || sort(&mut out.by_start, |l| l.ps[0]),
-        || sort(&mut out.by_end, |l| l.pe[0]),
+        || out.start_grid.fill(lines, |l| l.ps),
+        || out.end_grid.fill(lines, |l| l.pe),
     );
     let mut pairs = std::mem::take(&mut out.pairs);
     pairs.clear();
-    let (by_start, by_end) = (&out.by_start, &out.by_end);
+    let links = &*out;
     collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut pairs, |r, pairs| {
         for a in r {
             let la = &lines[a];
-            let r = GAP_PER_LENGTH * length(la) + BRIDGE_OVERLAP;
-            facing(lines, by_start, by_end, a, r, |b, from, to| {
+            let r = GAP_PER_LENGTH * links.lengths[a] + BRIDGE_OVERLAP;
+            facing(lines, links, a, r, |b, from, to, _| {
                 if same_way(la, &lines[b]) && continues(&lines[from], &lines[to]) {
                     pairs.push((from as u32, to as u32));
                 }
@@ -319,26 +459,26 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
     // The longest line of each component, at its root.
     links.longest.clear();
     links.longest.resize(links.bridged.len(), 0.0);
-    for (l, line) in lines.iter().enumerate() {
+    for (l, &len) in links.lengths.iter().enumerate() {
         let root = find(&links.border_parent, links.border_of[l]) as usize;
-        links.longest[root] = links.longest[root].max(length(line));
+        links.longest[root] = links.longest[root].max(len);
     }
     let near_bridged = |a: usize, b: usize| {
         links.bridged[links.border_of[a] as usize] || links.bridged[links.border_of[b] as usize]
     };
+    // Per line, the longest line of its component.
+    links.line_longest.clear();
+    for l in 0..links.lengths.len() {
+        let root = find(&links.border_parent, links.border_of[l]) as usize;
+        links.line_longest.push(links.longest[root]);
+    }
+    let share = |l: usize| GAP_CORNER_MIN_SHARE * links.line_longest[l];
     // Both lines long against their components' longest line.
-    let long_enough = |a: usize, b: usize| {
-        let longest =
-            [a, b].map(|l| links.longest[find(&links.border_parent, links.border_of[l]) as usize]);
-        length(&lines[a]).min(length(&lines[b]))
-            >= GAP_CORNER_MIN_SHARE * longest[0].max(longest[1])
-    };
+    let long_enough =
+        |a: usize, b: usize| links.lengths[a].min(links.lengths[b]) >= share(a).max(share(b));
     // A line shorter than that share of its own component's longest line
     // cannot be in a gap corner: skip it before looking for partners.
-    let eligible = |l: usize| {
-        let root = find(&links.border_parent, links.border_of[l]) as usize;
-        length(&lines[l]) >= GAP_CORNER_MIN_SHARE * links.longest[root]
-    };
+    let eligible = |l: usize| links.lengths[l] >= share(l);
     // Where the pair's lines meet, if they make a gap corner.
     let meeting = |a: usize, b: usize| {
         let (ca, cb) = (links.border_of[a], links.border_of[b]);
@@ -346,28 +486,38 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
         gap_corner(&lines[a], &lines[b], apart, p)
     };
     let n = lines.len();
+    let seen = &*links;
     collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut gaps, |r, gaps| {
         for x in r.filter(|&x| eligible(x)) {
-            let r = GAP_PER_LENGTH * length(&lines[x]) + reach;
-            facing(
-                lines,
-                &links.by_start,
-                &links.by_end,
-                x,
-                r,
-                |y, from, to| {
-                    if near_bridged(x, y) && eligible(y) && long_enough(from, to) {
-                        if let Some(pos) = meeting(from, to) {
-                            gaps.push((from as u32, to as u32, pos));
-                        }
+            let r = GAP_PER_LENGTH * links.lengths[x] + reach;
+            facing(lines, seen, x, r, |y, from, to, side| {
+                if near_bridged(x, y) && eligible(y) && long_enough(from, to) {
+                    if let Some(pos) = meeting(from, to) {
+                        let l = &lines[y];
+                        gaps.push(GapFound {
+                            x: x as u32,
+                            side,
+                            key: if side == Facing::Ahead {
+                                l.ps[0]
+                            } else {
+                                l.pe[0]
+                            },
+                            y: y as u32,
+                            lines: [from as u32, to as u32],
+                            pos,
+                        });
                     }
-                },
-            );
+                }
+            });
         }
     });
-    // The borders are joined in the pairs' order, after every pair was
-    // judged on the components as they were before.
-    for &(a, b, pos) in &gaps {
+    gaps.sort_by(GapFound::order);
+    // The borders are joined in that order, after every pair was judged
+    // on the components as they were before.
+    for &GapFound {
+        lines: [a, b], pos, ..
+    } in &gaps
+    {
         let (la, lb) = (&lines[a as usize], &lines[b as usize]);
         let (ca, cb) = (links.border_of[a as usize], links.border_of[b as usize]);
         union(&mut links.border_parent, ca, cb);
@@ -433,6 +583,49 @@ mod tests {
         let near = line([60.0, 20.0], [20.0, 20.0]);
         assert!(gap_corner(&right, &near, false, &p).is_none());
         assert!(gap_corner(&right, &near, true, &p).is_some());
+    }
+
+    proptest::proptest! {
+        /// The grid of line ends finds exactly the facing ends a scan of
+        /// every pair finds, lines short and long, packed or spread out,
+        /// ends on the grid's cell bounds included (whole coordinates).
+        #[test]
+        fn the_grid_finds_every_facing_end_a_full_scan_finds(
+            ends in proptest::collection::vec(
+                (0u32..120, 0u32..90, 0u32..120, 0u32..90, 0u32..4), 2..60),
+            r in 0.0f64..40.0,
+        ) {
+            let lines: Vec<Line> = ends
+                .iter()
+                .filter(|e| (e.0, e.1) != (e.2, e.3))
+                .map(|&(a, b, c, d, fine)| {
+                    let f = f64::from(fine) * 0.25;
+                    line([f64::from(a) * 4.0 + f, f64::from(b) * 4.0], [f64::from(c) * 4.0, f64::from(d) * 4.0 - f])
+                })
+                .collect();
+            let mut polys = Polygons::default();
+            polys.line_ranges = vec![(0, lines.len() as u32)];
+            polys.lines = lines;
+            let mut links = Links::default();
+            find_bridges(&polys, None::<&Workers<()>>, &mut links);
+            let lines = &polys.lines;
+            for x in 0..lines.len() {
+                let mut got = Vec::new();
+                facing(lines, &links, x, r, |y, from, to, side| got.push((side, y, from, to)));
+                got.sort();
+                let mut want = Vec::new();
+                for y in (0..lines.len()).filter(|&y| y != x && sees(&links.lengths, x, y)) {
+                    if within(lines[y].ps, lines[x].pe, r) {
+                        want.push((Facing::Ahead, y, x, y));
+                    }
+                    if within(lines[y].pe, lines[x].ps, r) {
+                        want.push((Facing::Behind, y, y, x));
+                    }
+                }
+                want.sort();
+                proptest::prop_assert_eq!(got, want);
+            }
+        }
     }
 
     #[test]
