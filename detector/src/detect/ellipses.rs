@@ -36,7 +36,7 @@
 
 use super::contours::Contours;
 use super::lines::Polygons;
-use super::parallel::Workers;
+use super::parallel::{collect_ranges_with, Workers};
 use crate::math::{cross, dot, fp, norm, sub};
 
 /// A fitted ellipse in working-image coordinates.
@@ -247,10 +247,14 @@ pub(crate) fn find_ellipses<W: Default + Send>(
         }
     }
     if params.pair_fragments {
-        group_fragments(contours, params, scratch);
+        group_fragments(contours, params, workers, scratch);
     }
     merge(contours, params, scratch, out);
 }
+
+/// Fewest fragments in one piece of [`group_fragments`]' parallel fits (a
+/// fragment has a few pairs within reach, each fit some microseconds).
+const MIN_FRAGMENTS_PER_PIECE: usize = 64;
 
 /// Fewest border points in one piece of [`find_ellipses`]' parallel work,
 /// which is cut by points: the long borders, few, hold most of the work.
@@ -520,7 +524,17 @@ const FRAG_MIN_LENGTH: f64 = 1.8;
 /// ([`FRAG_MAX_RMS`], the ellipse stage's axis limits) over enough of the
 /// rim ([`FRAG_MIN_SECTORS`], [`FRAG_MIN_CHORD`], [`FRAG_MIN_LENGTH`]),
 /// both fragments bending towards the ellipse's centre.
-fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut EllipseScratch) {
+///
+/// The pairs each fragment could make are fitted first, on `workers`'
+/// threads if given (the fits do not depend on which fragments are
+/// taken), then taken in that order; at 4K the fits took most of the
+/// ellipse stage.
+fn group_fragments<W: Default + Send>(
+    contours: &Contours,
+    params: &EllipseParams,
+    workers: Option<&Workers<W>>,
+    scratch: &mut EllipseScratch,
+) {
     /// A fragment's points (in `pts`, `range`), its middle point and its
     /// chord (first to last point) and chord length.
     struct Piece {
@@ -552,6 +566,77 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
     // No pair is farther apart than this (see FRAG_REACH).
     let window = FRAG_REACH * pieces.iter().map(|f| f.length).fold(0.0, f64::max);
     let min_points = (params.min_arc_points / ARC_SHARE) as u32;
+    // Every pair that fits, from each fragment, in the order of `by_x`.
+    let mut fits: Vec<(u32, u32, Conic)> = Vec::new();
+    let mut buf = std::mem::take(&mut scratch.pts);
+    collect_ranges_with(
+        workers,
+        frags.len(),
+        MIN_FRAGMENTS_PER_PIECE,
+        &mut buf,
+        &mut fits,
+        |r, buf, fits| {
+            for i in r {
+                let fi = &pieces[i];
+                let lo = xs.partition_point(|&x| x < fi.mid[0] - window);
+                let hi = xs.partition_point(|&x| x <= fi.mid[0] + window);
+                for &j in &by_x[lo..hi] {
+                    if j == i || frags[i].len + frags[j].len < min_points {
+                        continue;
+                    }
+                    let fj = &pieces[j];
+                    let gap = sub(fj.mid, fi.mid);
+                    let apart = norm(gap);
+                    if apart > FRAG_REACH * fi.length.max(fj.length) {
+                        continue;
+                    }
+                    // Both middles lie on the ellipse, so its major
+                    // semi-axis is at least half their distance: the fit's
+                    // own checks below, made on that bound first, spare
+                    // fits that cannot pass.
+                    let least_a = apart / 2.0;
+                    let together = f64::from(frags[i].len + frags[j].len);
+                    if fi.length.min(fj.length) < FRAG_MIN_CHORD * least_a
+                        || together < FRAG_MIN_LENGTH * least_a
+                    {
+                        continue;
+                    }
+                    // Each bends towards the other (both face the rim's
+                    // centre): the dark side, where a rim's border turns (a
+                    // negative cross product, see `arcs_of`).
+                    if !(cross(fi.chord, gap) < 0.0 && cross(fj.chord, [-gap[0], -gap[1]]) < 0.0) {
+                        continue;
+                    }
+                    buf.clear();
+                    buf.extend_from_slice(&pts[fi.range.clone()]);
+                    buf.extend_from_slice(&pts[fj.range.clone()]);
+                    let Some(fit) = fit_ellipse(buf) else {
+                        continue;
+                    };
+                    let faces = |f: &Piece| cross(f.chord, sub(fit.centre, f.mid)) < 0.0;
+                    if accept(&fit, params)
+                        && fit.rms <= FRAG_MAX_RMS
+                        && fi.length.min(fj.length) >= FRAG_MIN_CHORD * fit.a
+                        && together >= FRAG_MIN_LENGTH * fit.a
+                        && coverage(buf, &fit) >= FRAG_MIN_SECTORS
+                        && faces(fi)
+                        && faces(fj)
+                    {
+                        fits.push((i as u32, j as u32, fit));
+                    }
+                }
+            }
+        },
+    );
+    scratch.pts = buf;
+    // Where each fragment's pairs start in `fits` (ascending fragments).
+    let mut first = vec![0usize; frags.len() + 1];
+    for &(i, _, _) in &fits {
+        first[i as usize + 1] += 1;
+    }
+    for k in 1..first.len() {
+        first[k] += first[k - 1];
+    }
     let mut used = vec![false; frags.len()];
     let mut order: Vec<usize> = (0..frags.len()).collect();
     order.sort_by_key(|&i| std::cmp::Reverse(frags[i].len));
@@ -559,52 +644,10 @@ fn group_fragments(contours: &Contours, params: &EllipseParams, scratch: &mut El
         if used[i] {
             continue;
         }
-        let fi = &pieces[i];
-        let lo = xs.partition_point(|&x| x < fi.mid[0] - window);
-        let hi = xs.partition_point(|&x| x <= fi.mid[0] + window);
         let mut best: Option<(usize, Conic)> = None;
-        for &j in &by_x[lo..hi] {
-            if j == i || used[j] || frags[i].len + frags[j].len < min_points {
-                continue;
-            }
-            let fj = &pieces[j];
-            let gap = sub(fj.mid, fi.mid);
-            let apart = norm(gap);
-            if apart > FRAG_REACH * fi.length.max(fj.length) {
-                continue;
-            }
-            // Both middles lie on the ellipse, so its major semi-axis is
-            // at least half their distance: the fit's own checks below,
-            // made on that bound first, spare fits that cannot pass.
-            let least_a = apart / 2.0;
-            let together = f64::from(frags[i].len + frags[j].len);
-            if fi.length.min(fj.length) < FRAG_MIN_CHORD * least_a
-                || together < FRAG_MIN_LENGTH * least_a
-            {
-                continue;
-            }
-            // Each bends towards the other (both face the rim's centre):
-            // the dark side, where a rim's border turns (a negative cross
-            // product, see `arcs_of`).
-            if !(cross(fi.chord, gap) < 0.0 && cross(fj.chord, [-gap[0], -gap[1]]) < 0.0) {
-                continue;
-            }
-            scratch.pts.clear();
-            scratch.pts.extend_from_slice(&pts[fi.range.clone()]);
-            scratch.pts.extend_from_slice(&pts[fj.range.clone()]);
-            let Some(fit) = fit_ellipse(&scratch.pts) else {
-                continue;
-            };
-            let faces = |f: &Piece| cross(f.chord, sub(fit.centre, f.mid)) < 0.0;
-            if accept(&fit, params)
-                && fit.rms <= FRAG_MAX_RMS
-                && fi.length.min(fj.length) >= FRAG_MIN_CHORD * fit.a
-                && together >= FRAG_MIN_LENGTH * fit.a
-                && coverage(&scratch.pts, &fit) >= FRAG_MIN_SECTORS
-                && faces(fi)
-                && faces(fj)
-                && best.is_none_or(|(_, b)| fit.rms < b.rms)
-            {
+        for &(_, j, fit) in &fits[first[i]..first[i + 1]] {
+            let j = j as usize;
+            if !used[j] && best.is_none_or(|(_, b)| fit.rms < b.rms) {
                 best = Some((j, fit));
             }
         }
