@@ -486,11 +486,11 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
         gap_corner(&lines[a], &lines[b], apart, p)
     };
     let n = lines.len();
-    let seen = &*links;
+    let all = &*links;
     collect_ranges(workers, n, MIN_LINES_PER_PIECE, &mut gaps, |r, gaps| {
         for x in r.filter(|&x| eligible(x)) {
             let r = GAP_PER_LENGTH * links.lengths[x] + reach;
-            facing(lines, seen, x, r, |y, from, to, side| {
+            facing(lines, all, x, r, |y, from, to, side| {
                 if near_bridged(x, y) && eligible(y) && long_enough(from, to) {
                     if let Some(pos) = meeting(from, to) {
                         let l = &lines[y];

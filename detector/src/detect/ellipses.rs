@@ -525,10 +525,11 @@ const FRAG_MIN_LENGTH: f64 = 1.8;
 /// rim ([`FRAG_MIN_SECTORS`], [`FRAG_MIN_CHORD`], [`FRAG_MIN_LENGTH`]),
 /// both fragments bending towards the ellipse's centre.
 ///
-/// The pairs each fragment could make are fitted first, on `workers`'
-/// threads if given (the fits do not depend on which fragments are
-/// taken), then taken in that order; at 4K the fits took most of the
-/// ellipse stage.
+/// Every pair each fragment could make is fitted first, on `workers`'
+/// threads if given (a fit does not depend on which fragments are taken;
+/// at 4K the fits took most of the ellipse stage), then the pairs are
+/// taken as above, longest fragment first, each with its best partner
+/// still free.
 fn group_fragments<W: Default + Send>(
     contours: &Contours,
     params: &EllipseParams,
