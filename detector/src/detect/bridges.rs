@@ -324,13 +324,19 @@ struct GapFound {
     /// The x of `y`'s facing end.
     key: f64,
     y: u32,
-    /// Incoming and outgoing line.
-    lines: [u32; 2],
     /// Where they meet.
     pos: [f64; 2],
 }
 
 impl GapFound {
+    /// The incoming and the outgoing line.
+    fn lines(&self) -> [u32; 2] {
+        match self.side {
+            Facing::Ahead => [self.x, self.y],
+            Facing::Behind => [self.y, self.x],
+        }
+    }
+
     /// The order gap corners are added in, the same on any thread count:
     /// by line `x`, lines ahead of it before lines behind, then by the x
     /// of the facing end (ties by line), as a search along the lines
@@ -503,7 +509,6 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
                                 l.pe[0]
                             },
                             y: y as u32,
-                            lines: [from as u32, to as u32],
                             pos,
                         });
                     }
@@ -514,10 +519,8 @@ pub(crate) fn add_gap_corners<W: Default + Send>(
     gaps.sort_by(GapFound::order);
     // The borders are joined in that order, after every pair was judged
     // on the components as they were before.
-    for &GapFound {
-        lines: [a, b], pos, ..
-    } in &gaps
-    {
+    for g in &gaps {
+        let ([a, b], pos) = (g.lines(), g.pos);
         let (la, lb) = (&lines[a as usize], &lines[b as usize]);
         let (ca, cb) = (links.border_of[a as usize], links.border_of[b as usize]);
         union(&mut links.border_parent, ca, cb);
@@ -626,6 +629,32 @@ mod tests {
                 proptest::prop_assert_eq!(got, want);
             }
         }
+    }
+
+    #[test]
+    fn a_line_end_that_is_not_finite_is_never_near() {
+        let mut polys = Polygons::default();
+        polys.lines = vec![
+            line([0.0, 0.0], [40.0, 0.0]),
+            line([45.0, 0.0], [90.0, 0.0]),
+            Line {
+                ps: [f64::NAN, 0.0],
+                pe: [42.0, f64::INFINITY],
+                dir: [1.0, 0.0],
+            },
+        ];
+        polys.line_ranges = vec![(0, 3)];
+        let mut links = Links::default();
+        find_bridges(&polys, None::<&Workers<()>>, &mut links);
+        for x in 0..3 {
+            for r in [5.0, 1e9, f64::NAN] {
+                facing(&polys.lines, &links, x, r, |y, _, _, _| {
+                    assert!(x != 2 && y != 2, "{x} {y} {r}");
+                });
+            }
+        }
+        // The finite pieces still bridge.
+        assert_eq!(links.chain(0), links.chain(1));
     }
 
     #[test]

@@ -443,6 +443,12 @@ fn rim_attempt(
             return Outcome::Foreign(Box::new(q));
         }
     }
+    // A candidate's quad refined and read, unless faint.
+    let mut read_refined = |c: &Candidate| {
+        let q = refine_candidate(img, c, scale, &p.refine, scratch);
+        on(&q, None, false, shown_grid(img, &q), Promising::Smear)
+            .and_then(|d| unless_faint(img, d, targets, p))
+    };
     let reading = aligned
         .and_then(|(q, shown)| {
             on(&q, Some(&q), true, shown, Promising::Align).or_else(|| {
@@ -451,11 +457,7 @@ fn rim_attempt(
                     .flatten()
             })
         })
-        .or_else(|| {
-            let q = refine_candidate(img, cand, scale, &p.refine, scratch);
-            on(&q, None, false, shown_grid(img, &q), Promising::Smear)
-                .and_then(|d| unless_faint(img, d, targets, p))
-        })
+        .or_else(|| read_refined(cand))
         .or_else(|| {
             // Refinement measures the sides in windows of a cell or two
             // around the quad it starts from: the aligned print lies a
@@ -470,15 +472,7 @@ fn rim_attempt(
             // for no more markers there (one more of the calibration
             // set's).
             let (a, _) = aligned.filter(|_| named.get())?;
-            let q = refine_candidate(
-                img,
-                &rim::moved_to(cand, &a, scale),
-                scale,
-                &p.refine,
-                scratch,
-            );
-            on(&q, None, false, shown_grid(img, &q), Promising::Smear)
-                .and_then(|d| unless_faint(img, d, targets, p))
+            read_refined(&rim::moved_to(cand, &a, scale))
         })
         .map(|det| Reading {
             det,
