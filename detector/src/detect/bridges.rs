@@ -554,6 +554,17 @@ mod tests {
         }
     }
 
+    /// `lines` on borders `ranges` (first and past-last line of each),
+    /// and their bridges (one thread).
+    fn bridged(lines: Vec<Line>, ranges: Vec<(u32, u32)>) -> (Polygons, Links) {
+        let mut polys = Polygons::default();
+        polys.lines = lines;
+        polys.line_ranges = ranges;
+        let mut links = Links::default();
+        find_bridges(&polys, None::<&Workers<()>>, &mut links);
+        (polys, links)
+    }
+
     #[test]
     fn pieces_of_one_edge_continue_across_a_gap() {
         let a = line([0.0, 0.0], [40.0, 0.0]);
@@ -606,11 +617,8 @@ mod tests {
                     line([f64::from(a) * 4.0 + f, f64::from(b) * 4.0], [f64::from(c) * 4.0, f64::from(d) * 4.0 - f])
                 })
                 .collect();
-            let mut polys = Polygons::default();
-            polys.line_ranges = vec![(0, lines.len() as u32)];
-            polys.lines = lines;
-            let mut links = Links::default();
-            find_bridges(&polys, None::<&Workers<()>>, &mut links);
+            let ranges = vec![(0, lines.len() as u32)];
+            let (polys, links) = bridged(lines, ranges);
             let lines = &polys.lines;
             for x in 0..lines.len() {
                 let mut got = Vec::new();
@@ -633,8 +641,7 @@ mod tests {
 
     #[test]
     fn a_line_end_that_is_not_finite_is_never_near() {
-        let mut polys = Polygons::default();
-        polys.lines = vec![
+        let lines = vec![
             line([0.0, 0.0], [40.0, 0.0]),
             line([45.0, 0.0], [90.0, 0.0]),
             Line {
@@ -643,9 +650,7 @@ mod tests {
                 dir: [1.0, 0.0],
             },
         ];
-        polys.line_ranges = vec![(0, 3)];
-        let mut links = Links::default();
-        find_bridges(&polys, None::<&Workers<()>>, &mut links);
+        let (polys, links) = bridged(lines, vec![(0, 3)]);
         for x in 0..3 {
             for r in [5.0, 1e9, f64::NAN] {
                 facing(&polys.lines, &links, x, r, |y, _, _, _| {
@@ -659,16 +664,13 @@ mod tests {
 
     #[test]
     fn bridged_pieces_link_their_borders() {
-        let mut polys = Polygons::default();
-        polys.lines = vec![
+        let lines = vec![
             line([0.0, 0.0], [40.0, 0.0]),
             line([40.0, 0.0], [40.0, 30.0]),
             line([50.0, 0.0], [90.0, 0.0]),
             line([0.0, 60.0], [20.0, 60.0]),
         ];
-        polys.line_ranges = vec![(0, 2), (2, 3), (3, 4)];
-        let mut links = Links::default();
-        find_bridges(&polys, None::<&Workers<()>>, &mut links);
+        let (_, links) = bridged(lines, vec![(0, 2), (2, 3), (3, 4)]);
         assert_eq!(links.chain(0), links.chain(2));
         assert_ne!(links.chain(0), links.chain(1));
         assert_eq!(links.component(0), links.component(1));
