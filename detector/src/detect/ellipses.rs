@@ -567,7 +567,8 @@ fn group_fragments<W: Default + Send>(
     // No pair is farther apart than this (see FRAG_REACH).
     let window = FRAG_REACH * pieces.iter().map(|f| f.length).fold(0.0, f64::max);
     let min_points = (params.min_arc_points / ARC_SHARE) as u32;
-    // Every pair that fits, from each fragment, in the order of `by_x`.
+    // Every pair that fits: by fragment, each one's partners in the order
+    // of `by_x`.
     let mut fits: Vec<(u32, u32, Conic)> = Vec::new();
     let mut buf = std::mem::take(&mut scratch.pts);
     collect_ranges_with(
@@ -630,14 +631,13 @@ fn group_fragments<W: Default + Send>(
         },
     );
     scratch.pts = buf;
-    // Where each fragment's pairs start in `fits` (ascending fragments).
-    let mut first = vec![0usize; frags.len() + 1];
-    for &(i, _, _) in &fits {
-        first[i as usize + 1] += 1;
-    }
-    for k in 1..first.len() {
-        first[k] += first[k - 1];
-    }
+    // Fragment `i`'s pairs: `fits` holds the pieces' pairs in order
+    // (`collect_ranges_with`), so by ascending fragment.
+    let pairs_of = |i: usize| {
+        let i = i as u32;
+        let lo = fits.partition_point(|f| f.0 < i);
+        &fits[lo..lo + fits[lo..].partition_point(|f| f.0 == i)]
+    };
     let mut used = vec![false; frags.len()];
     let mut order: Vec<usize> = (0..frags.len()).collect();
     order.sort_by_key(|&i| std::cmp::Reverse(frags[i].len));
@@ -646,7 +646,7 @@ fn group_fragments<W: Default + Send>(
             continue;
         }
         let mut best: Option<(usize, Conic)> = None;
-        for &(_, j, fit) in &fits[first[i]..first[i + 1]] {
+        for &(_, j, fit) in pairs_of(i) {
             let j = j as usize;
             if !used[j] && best.is_none_or(|(_, b)| fit.rms < b.rms) {
                 best = Some((j, fit));
