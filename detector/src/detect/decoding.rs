@@ -387,9 +387,10 @@ fn rim_attempt(
     // leading codeword leads to. Only the aligned print's reading aligns
     // the quad to it: the others' quads are small moves of that quad or
     // the refined one (`Promising::Smear`).
-    // A shaded reading stands only as a last resort (see `standing`), and
-    // the rim look keeps none: with them the wild set gained 40 markers,
-    // two with a corner over 3 px off at a sigma of 0.65 and 2.4 px. The
+    // A reading kept only as a last resort (shaded, or at the rings'
+    // clear levels: see `standing`) the rim look keeps none of: with the
+    // shaded ones the wild set gained 40 markers, two with a corner over
+    // 3 px off at a sigma of 0.65 and 2.4 px. The
     // aligned print's own reading, when no fit confirms it, is kept aside
     // as a last resort (`unfitted_on_aligned`).
     let unfitted: std::cell::Cell<Option<Detection>> = std::cell::Cell::new(None);
@@ -399,7 +400,7 @@ fn rim_attempt(
         |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown, promising| {
             let d = read(img, cand, q, centre, targets, &p.decode, shown, promising);
             named.set(named.get() || d.is_some());
-            let d = d.filter(|d| (occluded || !d.occluded) && !d.shaded)?;
+            let d = d.filter(|d| (occluded || !d.occluded) && !d.last_resort)?;
             if promising != Promising::Align {
                 return rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned);
             }
@@ -813,12 +814,12 @@ enum Standing {
     Falls,
 }
 
-/// How a quad's reading `d` stands: as a last resort when shaded
-/// ([`Decoded::last_resort`]), as it is unless read by the nearest
+/// How a quad's reading `d` stands: as a last resort when it is kept only
+/// as one ([`Detection::last_resort`], [`Decoded::last_resort`]), as it is unless read by the nearest
 /// codeword ([`occluded_standing`]).
 fn standing(img: &GrayView<'_>, d: &Detection, targets: &[Target], p: &DecodingParams) -> Standing {
     match target_of(targets, d) {
-        _ if d.shaded => Standing::LastResort,
+        _ if d.last_resort => Standing::LastResort,
         _ if !d.occluded => Standing::Stands,
         Some(t) => occluded_standing(img, d, t, p),
         None => Standing::Falls,
@@ -1242,7 +1243,7 @@ fn read(
             upsampled: false,
             placed: false,
             faint: r.faint,
-            shaded: r.shaded,
+            last_resort: r.shaded || r.clear_ring,
             unfitted: false,
             center,
             contrast: r.contrast,
@@ -1838,7 +1839,7 @@ mod tests {
                     upsampled: false,
                     placed: false,
                     faint: false,
-                    shaded: false,
+                    last_resort: false,
                     unfitted: false,
                     center: [0.0, 0.0],
                     contrast: 200.0,

@@ -135,10 +135,12 @@ pub struct Detection {
     /// aligned print (`decoding::unless_faint`).
     #[serde(skip)]
     pub(crate) faint: bool,
-    /// Read under a smooth light field (`decode::QuadReading::shaded`):
-    /// kept only as a last resort.
+    /// Kept only as a last resort: read under a smooth light field
+    /// (`decode::QuadReading::shaded`) or at the levels of the clearer
+    /// half of the frame and margin rings
+    /// (`decode::QuadReading::clear_ring`).
     #[serde(skip)]
-    pub(crate) shaded: bool,
+    pub(crate) last_resort: bool,
     /// Placed on the aligned print with no fit of the model confirming it
     /// (`decoding::unfitted_on_aligned`): every corner estimated, its
     /// sigma a share of the side; kept only as a last resort.
