@@ -48,3 +48,32 @@ fn unpinned_needs_threads_and_images() {
         assert!(err.contains(expect), "{args:?}: {err}");
     }
 }
+
+/// `coppertag detect ... | head -1`: once the reader has closed the pipe,
+/// the command stops quietly with exit code 0, where `println!` panicked
+/// (a backtrace on the user's terminal) on the next line it wrote.
+#[test]
+fn a_reader_closing_the_pipe_stops_it_quietly() {
+    use std::io::{BufRead, BufReader};
+    use std::process::Stdio;
+    let img = repo().join("detector/tests/fixtures/ct14/1.png");
+    // Enough images that it is still writing when the reader goes.
+    let mut child = coppertag()
+        .arg("detect")
+        .args(std::iter::repeat_n(&img, 400))
+        .arg("--json")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.contains("\"id\":1"), "{first}");
+    // The reader is dropped here, closing the pipe.
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!err.contains("panicked"), "{err}");
+    assert_eq!(out.status.code(), Some(0), "{err}");
+}

@@ -1,5 +1,6 @@
 //! `coppertag detect`: find CopperTags in image files.
 
+use std::io::{self, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -235,6 +236,12 @@ pub fn run(args: &DetectArgs) -> Result<()> {
     let mut failed: Vec<String> = Vec::new();
     for path in &args.images {
         if let Err(e) = one_image(args, &mut detector, path, intrinsics.as_ref()) {
+            // The reader of our output went away (`coppertag detect ... |
+            // head`): nobody is left to tell, so stop quietly, as Unix
+            // tools do, instead of panicking in `println!` or going on.
+            if is_broken_pipe(&e) {
+                return Ok(());
+            }
             eprintln!("error: {e:#}");
             failed.push(path.display().to_string());
         }
@@ -248,6 +255,13 @@ pub fn run(args: &DetectArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Whether `e` comes from writing to a pipe whose reader has closed it.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain()
+        .filter_map(|c| c.downcast_ref::<io::Error>())
+        .any(|io| io.kind() == io::ErrorKind::BrokenPipe)
 }
 
 /// `--stats`: the detector's counts, and its stage times in ms.
@@ -290,6 +304,9 @@ fn one_image(
         })
         .collect();
     let name = path.display().to_string();
+    // Written with `writeln!`, not `println!`: a closed pipe is then an
+    // error to stop on (see `run`), not a panic.
+    let mut out = io::stdout().lock();
     if args.json {
         let line = JsonImage {
             image: &name,
@@ -310,9 +327,9 @@ fn one_image(
                 .collect(),
             stats: args.stats.then(|| stats_json(detector.stats())),
         };
-        println!("{}", serde_json::to_string(&line)?);
+        writeln!(out, "{}", serde_json::to_string(&line)?)?;
     } else {
-        println!("{name}: {} tag(s) in {ms:.2} ms", found.len());
+        writeln!(out, "{name}: {} tag(s) in {ms:.2} ms", found.len())?;
         for (d, p) in found.iter().zip(&poses) {
             let corners: Vec<String> = d
                 .corners
@@ -320,22 +337,25 @@ fn one_image(
                 .zip(d.estimated)
                 .map(|(c, e)| format!("({:.2}, {:.2}){}", c[0], c[1], if e { "*" } else { "" }))
                 .collect();
-            println!(
+            writeln!(
+                out,
                 "  {} {}  corrected {}  corners {}",
                 d.family,
                 d.id,
                 d.corrected,
                 corners.join(" ")
-            );
+            )?;
             if let Some(p) = p {
                 let t = p.best.translation;
-                println!(
+                writeln!(
+                    out,
                     "    position [{:.4}, {:.4}, {:.4}] m, reprojection {:.3} px",
                     t[0], t[1], t[2], p.best.reprojection_px
-                );
+                )?;
             }
         }
     }
+    drop(out);
     if let Some(out) = &args.draw {
         let stem = path
             .file_stem()
