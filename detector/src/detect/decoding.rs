@@ -242,6 +242,10 @@ fn attempt(
         return rim_attempt(img, cand, &seen, scale, centre, targets, p, scratch);
     }
     let q = refine_candidate(img, cand, scale, &p.refine, scratch);
+    // A quad of clutter reads to nothing, through every reading there is.
+    if print_align::shows_no_print(img, &q) {
+        return Outcome::Read(None);
+    }
     let shown = shown_grid(img, &q);
     // A square showing another family's cells is that family's data
     // square, not a tag's outline around a blurred one either (the
