@@ -483,7 +483,11 @@ pub(crate) fn align(img: &GrayView<'_>, m: [[f64; 2]; 2], c: [f64; 2]) -> Option
 fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
     const N: usize = 10;
     let pts = &level.points;
-    let mut a = SMatrix::<f64, N, N>::zeros();
+    // The normal equations' upper triangle, by rows: nalgebra's matrices
+    // are stored by columns, and the sums along a row (the inner loop
+    // below) then ran with a stride of N; here they run along contiguous
+    // memory. The same sums in the same order as summed into the matrix.
+    let mut upper = [[0.0f64; N]; N];
     let mut g = SVector::<f64, N>::zeros();
     // Gain and offset by least squares first, then the geometric step with
     // them as unknowns too.
@@ -540,16 +544,13 @@ fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
         let e = iv - (gain * tv + offset);
         for r in 0..N {
             g[r] += j[r] * e;
-            for s in r..N {
-                a[(r, s)] += j[r] * j[s];
+            let jr = j[r];
+            for (a, &js) in upper[r][r..].iter_mut().zip(&j[r..]) {
+                *a += jr * js;
             }
         }
     }
-    for r in 0..N {
-        for s in 0..r {
-            a[(r, s)] = a[(s, r)];
-        }
-    }
+    let mut a = SMatrix::<f64, N, N>::from_fn(|r, s| upper[r.min(s)][r.max(s)]);
     // Entries held fixed: their rows and columns become the identity.
     for r in free..8 {
         for s in 0..N {
