@@ -141,6 +141,12 @@ pub struct Detection {
     /// (`decode::QuadReading::clear_ring`).
     #[serde(skip)]
     pub(crate) last_resort: bool,
+    /// Read by the nearest codeword on cells levelled under glare
+    /// (`decode::QuadReading::glared`): it stands only with every corner
+    /// seen, as a last resort, and only such a reading confirms it in the
+    /// verify stage.
+    #[serde(skip)]
+    pub(crate) glared: bool,
     /// Placed on the aligned print with no fit of the model confirming it
     /// (`decoding::unfitted_on_aligned`): every corner estimated, its
     /// sigma a share of the side; kept only as a last resort.

@@ -565,6 +565,11 @@ pub(crate) struct Confirming {
     /// reading. Any other reading is confirmed only as it would have been
     /// without faint readings, whose geometry is less sure.
     pub faint: bool,
+    /// By the nearest codeword on cells levelled under glare
+    /// (`crate::decode::QuadReading::glared`): for a reading made so.
+    /// Tried for any other, it would confirm fitted corners that the
+    /// other readings refuse.
+    pub glared: bool,
 }
 
 /// The verdict on the geometry `h`: it must still decode to `id`, by the
@@ -588,6 +593,7 @@ fn check(
         limit: None,
         smeared: true,
         promising: Promising::AlignOrSmear,
+        glared: kind.glared,
     };
     match decode_quad_by(img, family, &corners, decode, accept) {
         Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
