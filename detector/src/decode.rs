@@ -1341,6 +1341,17 @@ mod tests {
             .is_none());
     }
 
+    /// Marsaglia's xorshift generator (2003) from `seed`: the random
+    /// grids of the glare tests.
+    fn xorshift(mut s: u64) -> impl FnMut() -> u64 {
+        move || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        }
+    }
+
     /// Whiteness of a tag's cells under a glare spot: cells near the spot's
     /// centre are lifted by up to `peak` (1 = the whole black-to-white gap).
     fn under_glare(family: &Family, id: u64, peak: f64) -> Vec<f64> {
@@ -1456,13 +1467,7 @@ mod tests {
     fn clipped_grids_of_no_tag_read_as_no_codeword() {
         // Random grids under clipped glare spots from a few cells to the
         // whole grid: none may read as a tag.
-        let mut s: u64 = 0x2545_F491_4F6C_DD1D;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        let mut next = xorshift(0x2545_F491_4F6C_DD1D);
         let fam = Family::ct14();
         let n = fam.grid();
         let corners = [[10.0, 10.0], [10.0, 90.0], [90.0, 90.0], [90.0, 10.0]];
@@ -1504,13 +1509,7 @@ mod tests {
         // cells to the whole grid: a reading past the limit would be a
         // wrong id (odds of 4 in 2^24 each with 24 bits of check; with 4
         // bits, 33 of these grids read).
-        let mut s: u64 = 0x9E37_79B9_7F4A_7C15;
-        let mut next = || {
-            s ^= s << 13;
-            s ^= s >> 7;
-            s ^= s << 17;
-            s
-        };
+        let mut next = xorshift(0x9E37_79B9_7F4A_7C15);
         let (black, contrast) = (40.0, 160.0);
         let mut past = 0;
         for fam in [Family::ct14(), Family::ct8()] {

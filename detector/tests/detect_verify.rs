@@ -328,9 +328,9 @@ fn tags_under_a_clipping_glare_are_found() {
 /// square or more (`fixtures/wild/glare-nearest-crops.csv`, 36-47 px):
 /// the code's glare reading erases every symbol with a washed-out cell,
 /// which left too few to stand, and none of the five was found. Read now
-/// by the nearest codeword of the cells the glare
-/// left, each levelled between its neighbours, as a last resort with
-/// every corner seen. Each corner within 2 px.
+/// by the nearest codeword of the cells the glare left, each levelled
+/// between its neighbours, as a last resort with every corner seen. Each
+/// corner within 2 px.
 #[test]
 fn tags_with_half_their_square_clipped_by_glare_are_found() {
     let found = crops_found("glare-nearest-crops.csv", 2.0);
