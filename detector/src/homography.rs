@@ -77,6 +77,27 @@ impl Homography {
     }
 }
 
+/// The eight entries of a homography's matrix `m` other than its last,
+/// divided by it (the matrix scaled to `m[2][2] = 1`), row-major: the
+/// parameters the model fit and the print alignment move. `None` when
+/// `m[2][2]` is (nearly) 0.
+pub(crate) fn free_entries(m: &Matrix3<f64>) -> Option<[f64; 8]> {
+    let z = m[(2, 2)];
+    if z.abs() < 1e-12 {
+        return None;
+    }
+    Some([
+        m[(0, 0)] / z,
+        m[(0, 1)] / z,
+        m[(0, 2)] / z,
+        m[(1, 0)] / z,
+        m[(1, 1)] / z,
+        m[(1, 2)] / z,
+        m[(2, 0)] / z,
+        m[(2, 1)] / z,
+    ])
+}
+
 /// Serialised as its matrix, row-major (`[[h11, h12, h13], ...]`).
 impl serde::Serialize for Homography {
     fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {

@@ -28,7 +28,7 @@ use nalgebra::{SMatrix, SVector};
 
 use crate::family::Family;
 use crate::geometry::{tag_shapes, Element, Paint, Part, Shape, B, CORNERS, R};
-use crate::homography::Homography;
+use crate::homography::{free_entries, Homography};
 use crate::math::{bilinear_cross, sample_bilinear};
 use crate::view::GrayView;
 
@@ -368,24 +368,6 @@ fn fixed_look(img: &GrayView<'_>, h: &H8) -> Option<f64> {
         .max_by(f64::total_cmp)
 }
 
-/// `h` as the eight free entries of [`H8`], if its ninth is not 0.
-fn h8_of(h: &Homography) -> Option<H8> {
-    let m = h.matrix();
-    let k = m[(2, 2)];
-    (k != 0.0 && k.is_finite()).then(|| {
-        [
-            m[(0, 0)] / k,
-            m[(0, 1)] / k,
-            m[(0, 2)] / k,
-            m[(1, 0)] / k,
-            m[(1, 1)] / k,
-            m[(1, 2)] / k,
-            m[(2, 0)] / k,
-            m[(2, 1)] / k,
-        ]
-    })
-}
-
 /// Least [`fixed_look`] of a refined candidate quad that is decoded
 /// ([`shows_no_print`]). Most candidates of a cluttered frame are quads of
 /// clutter, and each costs a whole failed reading (every reading the
@@ -410,7 +392,8 @@ pub(crate) const MIN_QUAD_LOOK: f64 = 0.05;
 /// `outline`). A look that cannot be judged (a tag mostly off the image)
 /// refuses nothing.
 pub(crate) fn shows_no_print(img: &GrayView<'_>, q: &[[f64; 2]; 4]) -> bool {
-    let Some(h) = Homography::from_points(&CORNERS, q).and_then(|h| h8_of(&h)) else {
+    let Some(h) = Homography::from_points(&CORNERS, q).and_then(|h| free_entries(h.matrix()))
+    else {
         return false;
     };
     // As the outline, `q` is the tag's plane at twice the scale: its data
@@ -727,7 +710,7 @@ mod tests {
             let view = GrayView::from(&img);
             let h = Homography::from_points(&CORNERS, &q).unwrap();
             assert!(
-                fixed_look(&view, &h8_of(&h).unwrap()).unwrap() > 0.5,
+                fixed_look(&view, &free_entries(h.matrix()).unwrap()).unwrap() > 0.5,
                 "side {side}"
             );
             let off = [[1.0, -0.6], [-0.8, 0.9], [0.7, 1.0], [-1.0, -0.5]];

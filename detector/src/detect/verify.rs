@@ -45,7 +45,7 @@ use crate::decode::{decode_quad_by, Accept, DecodeParams, Promising};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
-use crate::homography::Homography;
+use crate::homography::{free_entries, Homography};
 use crate::math::{centroid, dot, mean_side, norm, sample_bilinear, sample_profile, sub};
 use crate::view::GrayView;
 
@@ -743,21 +743,7 @@ impl Norm {
 type Params = SVector<f64, 8>;
 
 fn params(m: &Matrix3<f64>) -> Option<Params> {
-    let z = m[(2, 2)];
-    if z.abs() < 1e-12 {
-        return None;
-    }
-    let m = m / z;
-    Some(Params::from_column_slice(&[
-        m[(0, 0)],
-        m[(0, 1)],
-        m[(0, 2)],
-        m[(1, 0)],
-        m[(1, 1)],
-        m[(1, 2)],
-        m[(2, 0)],
-        m[(2, 1)],
-    ]))
+    free_entries(m).map(|e| Params::from_column_slice(&e))
 }
 
 fn matrix(p: &Params) -> Matrix3<f64> {
