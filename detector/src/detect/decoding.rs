@@ -217,7 +217,15 @@ pub(crate) struct Decoded {
     /// detection changed. Taken as readings that stand, 18 more, but 14
     /// other tags' corners moved, one to 2.6 px off; tried in the rim look
     /// too, with a corner allowed hidden, 104 more, 7 of them rough
-    /// (corners under the glare 3.2-5.9 px off).
+    /// (corners under the glare 3.2-5.9 px off). Of the rim look's aligned
+    /// print too, held to every corner seen like a quad's: 6 more of the
+    /// wild set's markers and 3 of the calibration set's (29-44 px, every
+    /// corner within 0.85 px of the truth), no other lost and the three
+    /// others that moved no farther from the truth. With one hidden corner
+    /// allowed there as a nearest-codeword reading's (within
+    /// `HIDDEN_CORNER_TOL_PX` of the parallelogram), 13 more on the wild
+    /// set, one of them rough (a hidden corner 3.15 px off at a sigma of
+    /// 0.59 px).
     pub last_resort: Vec<Found>,
 }
 
@@ -416,14 +424,25 @@ fn rim_attempt(
     // tags of 24-45 px read so: on the wild set 14 more markers, on the
     // calibration set 6, none rough or lost; without the sigma bound 16
     // and one rough (an estimated corner 3.1 px off at a sigma of 2.4 px)
-    // once the print and the fit may disagree by 0.06 of the side.
+    // once the print and the fit may disagree by 0.06 of the side. Its
+    // reading under glare (`decode::QuadReading::glared`) is kept aside
+    // the same way, and stands only with every corner seen
+    // (`glare_reading_stands`, see `Decoded::last_resort`).
     let aside_slot: std::cell::Cell<Option<Detection>> = std::cell::Cell::new(None);
     // Whether some reading so far named an id, standing or not.
     let named = std::cell::Cell::new(false);
     let on =
         |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown, promising| {
             let d = read(
-                img, cand, q, centre, targets, &p.decode, shown, promising, false,
+                img,
+                cand,
+                q,
+                centre,
+                targets,
+                &p.decode,
+                shown,
+                promising,
+                promising == Promising::Align,
             );
             named.set(named.get() || d.is_some());
             let d = d.filter(|d| occluded || !d.occluded)?;
@@ -1241,9 +1260,11 @@ fn finest_grid(p: &RefineParams) -> usize {
 /// alone it is read as; `promising`, what a likelihood fit that leads
 /// without reading leads to; `glared`, whether the reading under glare
 /// by the nearest codeword (`decode::QuadReading::glared`) is tried: for
-/// a candidate's own quad only, where it is judged as a last resort. In
-/// the rim look and on the outline's inner square it would stand in for
-/// the readings those go on to try when nothing reads.
+/// a candidate's own quad and the rim look's aligned print, where it is
+/// kept aside as a last resort and the readings that follow are still
+/// tried. On the outline's inner square and at the rim look's other quads
+/// (small moves of the print, refined quads) it would stand in for the
+/// readings those go on to try when nothing reads.
 #[allow(clippy::too_many_arguments)]
 fn read(
     img: &GrayView<'_>,
