@@ -304,6 +304,7 @@ fn quad_reading(
         shown,
         Promising::Align,
         true,
+        false,
     );
     let (own, last_resort) = match read_own.map(|d| (standing(img, &d, targets, p), d)) {
         Some((Standing::Stands, d)) => (unless_faint(img, d, targets, p), None),
@@ -332,6 +333,7 @@ fn quad_reading(
                 &p.decode,
                 shown_grid(img, &inner),
                 Promising::Align,
+                false,
                 false,
             )
             .filter(|d| {
@@ -443,6 +445,7 @@ fn rim_attempt(
                 shown,
                 promising,
                 promising == Promising::Align,
+                true,
             );
             named.set(named.get() || d.is_some());
             let d = d.filter(|d| occluded || !d.occluded)?;
@@ -503,6 +506,12 @@ fn rim_attempt(
         if reads_as_foreign(img, &q, targets, &p.decode) {
             return Outcome::Foreign(Box::new(q));
         }
+    }
+    // A print aligned smaller than any target's rim reading may stand at
+    // is not read: each of its readings would fail that test after a
+    // model fit.
+    if aligned.is_some_and(|(q, _)| targets.iter().all(|t| too_small_for_rim(&q, t))) {
+        return Outcome::Read(None);
     }
     // A candidate's quad refined and read, unless faint.
     let mut read_refined = |c: &Candidate| {
@@ -683,6 +692,31 @@ fn rim_reading_stands(
         });
     };
     on_aligned_print(d, &v, aligned)
+}
+
+/// Share of the smallest data square a rim reading stands on
+/// ([`RIM_MIN_CELL_PX`] cells) under which the rim look does not read the
+/// print it aligned ([`too_small_for_rim`]). A reading's square is the
+/// model fit's, which moves the aligned print's corners by a pixel or so
+/// (at most [`RIM_ALIGN_AGREEMENT_OF_SIDE`] of the side, or the reading
+/// does not stand), and the small moves read at scales of 0.975-1.025:
+/// squares a tenth under the limit cannot reach it.
+const RIM_SIDE_SLACK: f64 = 0.9;
+
+/// Whether the square `q` is too small for a rim reading of target `t`
+/// to stand (`rim_geometry_agrees`), with [`RIM_SIDE_SLACK`]: the rim
+/// look reads no such target there, and reads nothing at all where no
+/// target is left.
+///
+/// Why: such squares were read anyway, at the aligned print and at each
+/// small move of it, and every reading that named an id paid for a model
+/// fit before the size test dropped it. On the wild benchmark's 1080p
+/// frames 2 and 14, prints aligned at 20 px (a ct14 rim reading needs
+/// 24 px; the small-tag look reads such tags) took the rim stage's time
+/// from 1.3 ms to 2.5-3.5 ms, with or without ct8 looked for. No
+/// detection of the wild, calibration, jitter or tag-free sets changes.
+fn too_small_for_rim(q: &[[f64; 2]; 4], t: &Target) -> bool {
+    mean_side(q) < RIM_SIDE_SLACK * RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64
 }
 
 /// Whether a rim reading's geometry, `h` and the data square `corners` it
@@ -1276,12 +1310,16 @@ fn read(
     shown: Option<usize>,
     promising: Promising,
     glared: bool,
+    rim: bool,
 ) -> Option<Detection> {
     let mut best: Option<Detection> = None;
     for t in targets {
         // A clean read cannot be beaten by another family.
         if best.as_ref().is_some_and(|b| b.corrected == 0) {
             break;
+        }
+        if rim && too_small_for_rim(q, t) {
+            continue;
         }
         // A family whose grid the square does not show cannot read
         // (`pitch`), and its readings are the costliest of a frame that
@@ -1827,6 +1865,35 @@ mod tests {
     /// A target of `fam` at its default limit.
     fn target(fam: &Family) -> Target {
         Target::of(&FamilySetting::builtin(fam.name()).unwrap())
+    }
+
+    /// The rim look leaves a family unread only on squares where none of
+    /// its readings could stand: ct14's need cells of 1.5 px over 16 (24
+    /// px), ct8's over 10 (15 px). A print aligned at the limit, or moved
+    /// to 0.975 of it (`ALIGNED_JITTER`), is read.
+    #[test]
+    fn rim_squares_too_small_for_a_family_are_not_read_as_it() {
+        let square = |s: f64| {
+            [
+                [10.0, 10.0],
+                [10.0, 10.0 + s],
+                [10.0 + s, 10.0 + s],
+                [10.0 + s, 10.0],
+            ]
+        };
+        let (ct8, ct14) = (target(Family::ct8()), target(Family::ct14()));
+        assert!(too_small_for_rim(&square(20.0), &ct14));
+        assert!(!too_small_for_rim(&square(20.0), &ct8));
+        assert!(too_small_for_rim(&square(13.0), &ct8));
+        for (t, limit) in [(&ct14, 24.0), (&ct8, 15.0)] {
+            for k in [1.0, 0.975] {
+                assert!(!too_small_for_rim(&square(k * limit), t));
+                // And a pixel-wide tilt of one side does not tip it.
+                let mut q = square(k * limit);
+                q[2][0] -= 1.0;
+                assert!(!too_small_for_rim(&q, t));
+            }
+        }
     }
 
     #[test]
