@@ -301,10 +301,12 @@ fn quad_reading(
         centre,
         targets,
         &p.decode,
-        shown,
-        Promising::Align,
-        true,
-        false,
+        ReadAs {
+            shown,
+            promising: Promising::Align,
+            glared: true,
+            rim: false,
+        },
     );
     let (own, last_resort) = match read_own.map(|d| (standing(img, &d, targets, p), d)) {
         Some((Standing::Stands, d)) => (unless_faint(img, d, targets, p), None),
@@ -331,10 +333,12 @@ fn quad_reading(
                 centre,
                 targets,
                 &p.decode,
-                shown_grid(img, &inner),
-                Promising::Align,
-                false,
-                false,
+                ReadAs {
+                    shown: shown_grid(img, &inner),
+                    promising: Promising::Align,
+                    glared: false,
+                    rim: false,
+                },
             )
             .filter(|d| {
                 if d.occluded {
@@ -439,18 +443,13 @@ fn rim_attempt(
               occluded: bool,
               shown,
               promising| {
-        let d = read(
-            img,
-            cand,
-            q,
-            centre,
-            targets,
-            &p.decode,
+        let how = ReadAs {
             shown,
             promising,
-            promising == Promising::Align,
-            true,
-        );
+            glared: promising == Promising::Align,
+            rim: true,
+        };
+        let d = read(img, cand, q, centre, targets, &p.decode, how);
         named.set(named.get() || d.is_some());
         let d = d.filter(|d| occluded || !d.occluded)?;
         if d.last_resort {
@@ -1340,19 +1339,30 @@ fn finest_grid(p: &RefineParams) -> usize {
     (p.cells_per_side as usize).saturating_sub(MARGIN_CELLS)
 }
 
+/// How [`read`] reads a quad.
+#[derive(Debug, Clone, Copy)]
+struct ReadAs {
+    /// The grid the square shows ([`shown_grid`]), whose families alone it
+    /// is read as.
+    shown: Option<usize>,
+    /// What a likelihood fit that leads without reading leads to.
+    promising: Promising,
+    /// Whether the reading under glare by the nearest codeword
+    /// (`decode::QuadReading::glared`) is tried: for a candidate's own
+    /// quad and the rim look's aligned print, where it is kept aside as a
+    /// last resort and the readings that follow are still tried. On the
+    /// outline's inner square and at the rim look's other quads (small
+    /// moves of the print, refined quads) it would stand in for the
+    /// readings those go on to try when nothing reads.
+    glared: bool,
+    /// Whether the quad is the rim look's: no family is read where its
+    /// rim readings could not stand ([`too_small_for_rim`]).
+    rim: bool,
+}
+
 /// The best reading of the refined quad `q` over the target families: the
 /// fewest corrections, the first family on a tie. `centre` (the quad's
 /// centroid) stands in for the tag centre if the homography cannot map it.
-/// `shown`: the grid the square shows ([`shown_grid`]), whose families
-/// alone it is read as; `promising`, what a likelihood fit that leads
-/// without reading leads to; `glared`, whether the reading under glare
-/// by the nearest codeword (`decode::QuadReading::glared`) is tried: for
-/// a candidate's own quad and the rim look's aligned print, where it is
-/// kept aside as a last resort and the readings that follow are still
-/// tried. On the outline's inner square and at the rim look's other quads
-/// (small moves of the print, refined quads) it would stand in for the
-/// readings those go on to try when nothing reads.
-#[allow(clippy::too_many_arguments)]
 fn read(
     img: &GrayView<'_>,
     cand: &Candidate,
@@ -1360,10 +1370,7 @@ fn read(
     centre: [f64; 2],
     targets: &[Target],
     params: &DecodeParams,
-    shown: Option<usize>,
-    promising: Promising,
-    glared: bool,
-    rim: bool,
+    how: ReadAs,
 ) -> Option<Detection> {
     let mut best: Option<Detection> = None;
     for t in targets {
@@ -1371,13 +1378,13 @@ fn read(
         if best.as_ref().is_some_and(|b| b.corrected == 0) {
             break;
         }
-        if rim && too_small_for_rim(q, t) {
+        if how.rim && too_small_for_rim(q, t) {
             continue;
         }
         // A family whose grid the square does not show cannot read
         // (`pitch`), and its readings are the costliest of a frame that
         // holds the other family's tags.
-        if shown.is_some_and(|g| rules_out(g, &t.family)) {
+        if how.shown.is_some_and(|g| rules_out(g, &t.family)) {
             continue;
         }
         // A reading by the code over the family's limit counts as none,
@@ -1386,8 +1393,8 @@ fn read(
             nearest: true,
             limit: Some(t.max_corrected),
             smeared: !cand.estimated.iter().any(|&e| e),
-            promising,
-            glared,
+            promising: how.promising,
+            glared: how.glared,
         };
         let Some(r) = decode_quad_by(img, &t.family, q, params, accept) else {
             continue;
