@@ -729,20 +729,23 @@ fn rim_reading_stands(
 struct FitsFailed(std::cell::RefCell<Vec<(String, u64, [bool; 4])>>);
 
 impl FitsFailed {
-    fn key(d: &Detection) -> (String, u64, [bool; 4]) {
-        (
-            d.family.clone(),
-            d.id,
-            [d.occluded, d.likelihood, d.faint, d.glared],
-        )
+    /// The kind of reading `d` is, as the fit's confirmation depends on it.
+    fn kind(d: &Detection) -> [bool; 4] {
+        [d.occluded, d.likelihood, d.faint, d.glared]
     }
 
     fn holds(&self, d: &Detection) -> bool {
-        self.0.borrow().contains(&Self::key(d))
+        let kind = Self::kind(d);
+        self.0
+            .borrow()
+            .iter()
+            .any(|(family, id, k)| *family == d.family && *id == d.id && *k == kind)
     }
 
     fn add(&self, d: &Detection) {
-        self.0.borrow_mut().push(Self::key(d));
+        self.0
+            .borrow_mut()
+            .push((d.family.clone(), d.id, Self::kind(d)));
     }
 }
 
@@ -768,7 +771,7 @@ const RIM_SIDE_SLACK: f64 = 0.9;
 /// from 1.3 ms to 2.5-3.5 ms, with or without ct8 looked for. No
 /// detection of the wild, calibration, jitter or tag-free sets changes.
 fn too_small_for_rim(q: &[[f64; 2]; 4], t: &Target) -> bool {
-    mean_side(q) < RIM_SIDE_SLACK * RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64
+    mean_side(q) < RIM_SIDE_SLACK * rim_min_side(t)
 }
 
 /// Whether a rim reading's geometry, `h` and the data square `corners` it
@@ -783,7 +786,13 @@ fn rim_geometry_agrees(
     scale: f64,
 ) -> bool {
     !(rim::rim_disagreement(h, e, scale) > RIM_AGREEMENT_OF_SIDE
-        || mean_side(corners) < RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64)
+        || mean_side(corners) < rim_min_side(t))
+}
+
+/// Smallest data square (mean side, px) a rim reading of target `t`
+/// stands on: [`RIM_MIN_CELL_PX`] over the family's cells and margin.
+fn rim_min_side(t: &Target) -> f64 {
+    RIM_MIN_CELL_PX * (t.family.grid() + MARGIN_CELLS) as f64
 }
 
 /// Share of the side that is the sigma of each corner of a reading placed
