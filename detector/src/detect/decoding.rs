@@ -438,46 +438,37 @@ fn rim_attempt(
     // Whether some reading so far named an id, standing or not.
     let named = std::cell::Cell::new(false);
     let unfit = FitsFailed::default();
-    let on = |q: &[[f64; 2]; 4],
-              aligned: Option<&[[f64; 2]; 4]>,
-              occluded: bool,
-              shown,
-              promising| {
-        let how = ReadAs {
-            shown,
-            promising,
-            glared: promising == Promising::Align,
-            rim: true,
-        };
-        let d = read(img, cand, q, centre, targets, &p.decode, how);
-        named.set(named.get() || d.is_some());
-        let d = d.filter(|d| occluded || !d.occluded)?;
-        if d.last_resort {
-            if promising == Promising::Align {
-                // Still marked a last resort: `last_resorts` takes it.
-                aside_slot.set(rim_reading_stands(
-                    img,
-                    d,
-                    targets,
-                    p,
-                    &seen.ellipse,
-                    scale,
-                    aligned,
-                    &unfit,
-                ));
+    let on =
+        |q: &[[f64; 2]; 4], aligned: Option<&[[f64; 2]; 4]>, occluded: bool, shown, promising| {
+            let how = ReadAs {
+                shown,
+                promising,
+                glared: promising == Promising::Align,
+                rim: true,
+            };
+            let d = read(img, cand, q, centre, targets, &p.decode, how);
+            named.set(named.get() || d.is_some());
+            let d = d.filter(|d| occluded || !d.occluded)?;
+            // The rim look's one test of a reading, on this quad.
+            let stands =
+                |d| rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned, &unfit);
+            if d.last_resort {
+                if promising == Promising::Align {
+                    // Still marked a last resort: `last_resorts` takes it.
+                    aside_slot.set(stands(d));
+                }
+                return None;
             }
-            return None;
-        }
-        if promising != Promising::Align {
-            return rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned, &unfit);
-        }
-        let kept = d.clone();
-        let stands = rim_reading_stands(img, d, targets, p, &seen.ellipse, scale, aligned, &unfit);
-        if stands.is_none() {
-            aside_slot.set(unfitted_on_aligned(kept, targets, &seen.ellipse, scale));
-        }
-        stands
-    };
+            if promising != Promising::Align {
+                return stands(d);
+            }
+            let kept = d.clone();
+            let fitted = stands(d);
+            if fitted.is_none() {
+                aside_slot.set(unfitted_on_aligned(kept, targets, &seen.ellipse, scale));
+            }
+            fitted
+        };
     // The moves read as the grid their square shows: they move it by a
     // third of a pixel.
     let jittered = |q: &[[f64; 2]; 4], shown| {
