@@ -170,8 +170,9 @@ impl Gf {
         }
     }
 
-    /// Multiplicative inverse; `a` must be non-zero.
-    #[inline]
+    /// Multiplicative inverse; `a` must be non-zero. The decoder takes
+    /// the inverse's logarithm directly; the tests check division by it.
+    #[cfg(test)]
     fn inv(&self, a: u8) -> u8 {
         self.div(1, a)
     }
@@ -181,6 +182,50 @@ impl Gf {
     #[inline]
     fn eval_low_first(&self, p: &[u8], x: u8) -> u8 {
         p.iter().rev().fold(0, |acc, &c| self.mul(acc, x) ^ c)
+    }
+
+    /// The word indices `j` in `0..n` (of a word of `n` symbols) at which
+    /// `lambda` (lowest degree first) vanishes at `X^-1`, `X =
+    /// alpha^(n-1-j)`, in increasing order, written to `out`; returns how
+    /// many.
+    ///
+    /// Term by term in the exponents (Chien's own recurrence): at index
+    /// j, term i is alpha^(log lambda_i + i e_j), where e_j is the order
+    /// less n - 1 - j; e_j grows by one with j, so each non-zero term's
+    /// exponent grows by i. One table look-up per term and index, where
+    /// Horner's rule ([`Gf::eval_low_first`]) took a product, two look-ups
+    /// and two zero tests, per term. Why: the words read from clutter are
+    /// nearly all uncorrectable and most reach this search; on 300 wild
+    /// frames the decoder's share of the detection time went from 5.5% to
+    /// 4.5%.
+    fn chien(&self, lambda: &[u8], n: usize, out: &mut [usize; BUF]) -> usize {
+        let order = self.order;
+        let mut exps = [0usize; BUF];
+        let mut steps = [0usize; BUF];
+        let mut terms = 0usize;
+        let e0 = (order - (n - 1) % order) % order;
+        for (i, &c) in lambda.iter().enumerate().filter(|(_, &c)| c != 0) {
+            exps[terms] = (usize::from(self.log[usize::from(c)]) + i * e0) % order;
+            steps[terms] = i % order;
+            terms += 1;
+        }
+        let (exps, steps) = (&mut exps[..terms], &steps[..terms]);
+        let mut found = 0usize;
+        for j in 0..n {
+            let mut value = 0u8;
+            for (e, &step) in exps.iter_mut().zip(steps) {
+                value ^= self.exp[*e];
+                *e += step;
+                if *e >= order {
+                    *e -= order;
+                }
+            }
+            if value == 0 {
+                out[found] = j;
+                found += 1;
+            }
+        }
+        found
     }
 }
 
@@ -500,18 +545,28 @@ impl ReedSolomon {
                 b = tmp;
                 continue;
             }
+            // Products by Delta (and by its inverse) with their logarithms
+            // taken once: `gf.mul` looks up both factors' every time.
+            let log_delta = usize::from(gf.log[usize::from(delta)]);
+            let times = |log_factor: usize, c: u8| {
+                if c == 0 {
+                    0
+                } else {
+                    gf.exp[log_factor + usize::from(gf.log[usize::from(c)])]
+                }
+            };
             if 2 * len < r + f {
                 // Length change: B <- Lambda / Delta, Lambda <- Lambda - Delta x B.
-                let inv = gf.inv(delta);
+                let log_inv = (order - log_delta) % order;
                 for i in 0..=p + 1 {
                     let old = lambda[i];
-                    lambda[i] ^= gf.mul(delta, tmp[i]);
-                    b[i] = gf.mul(old, inv);
+                    lambda[i] ^= times(log_delta, tmp[i]);
+                    b[i] = times(log_inv, old);
                 }
                 len = r + f - len;
             } else {
                 for i in 0..=p + 1 {
-                    lambda[i] ^= gf.mul(delta, tmp[i]);
+                    lambda[i] ^= times(log_delta, tmp[i]);
                 }
                 b = tmp;
             }
@@ -533,15 +588,7 @@ impl ReedSolomon {
         // zeros of a shortened code are never found, so the root-count check
         // below rejects such "corrections".
         let mut positions = [0usize; BUF];
-        let mut num_roots = 0usize;
-        for j in 0..n {
-            let power = n - 1 - j;
-            let x_inv = gf.pow_alpha(order - power);
-            if gf.eval_low_first(&lambda[..=deg], x_inv) == 0 {
-                positions[num_roots] = j;
-                num_roots += 1;
-            }
-        }
+        let num_roots = gf.chien(&lambda[..=deg], n, &mut positions);
         if num_roots != deg {
             return Err(Error::Uncorrectable);
         }
@@ -637,6 +684,57 @@ mod tests {
                 for b in 0..gf.size() as u8 {
                     assert_eq!(gf.mul(a, b), slow_mul(a, b, bits, poly), "{a}*{b}");
                 }
+            }
+        }
+    }
+
+    /// The Chien search's recurrence finds the roots Horner's rule finds,
+    /// for polynomials of every degree up to 16 over each field, words
+    /// of every length up to the field's order.
+    #[test]
+    fn chien_finds_the_roots_horner_finds() {
+        let mut state = 0x2545_f491_4f6c_dd1du64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for (bits, poly) in FIELDS {
+            let gf = Gf::new(bits, poly).unwrap();
+            for trial in 0..400 {
+                let deg = trial % 17;
+                let n = 1 + (next() as usize) % gf.order;
+                // Some polynomials built from chosen roots, so that roots
+                // are found; the others random, with zero coefficients.
+                let mut lambda = vec![0u8; deg + 1];
+                if trial % 2 == 0 {
+                    lambda[0] = 1;
+                    for d in 1..=deg {
+                        let x = gf.pow_alpha(next() as usize % gf.order);
+                        for i in (1..=d).rev() {
+                            lambda[i] ^= gf.mul(lambda[i - 1], x);
+                        }
+                    }
+                } else {
+                    for c in lambda.iter_mut() {
+                        let keep = next() % 4 != 0;
+                        *c = if keep {
+                            (next() % gf.size() as u64) as u8
+                        } else {
+                            0
+                        };
+                    }
+                }
+                let want: Vec<usize> = (0..n)
+                    .filter(|&j| {
+                        let x_inv = gf.pow_alpha(gf.order - (n - 1 - j));
+                        gf.eval_low_first(&lambda, x_inv) == 0
+                    })
+                    .collect();
+                let mut out = [0usize; BUF];
+                let found = gf.chien(&lambda, n, &mut out);
+                assert_eq!(&out[..found], &want[..], "GF(2^{bits}) {lambda:?} n {n}");
             }
         }
     }
