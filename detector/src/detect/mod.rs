@@ -267,7 +267,7 @@ struct StageParams {
     corners: corners::CornerParams,
     ellipses: ellipses::EllipseParams,
     quads: quads::QuadParams,
-    decoding: decoding::DecodingParams,
+    decoding: decoding::DecodingParams<'static>,
 }
 
 impl StageParams {
@@ -317,6 +317,7 @@ impl StageParams {
                     min_edge_contrast: refine::MIN_EDGE_CONTRAST,
                 },
                 decode: DecodeParams::default(),
+                fits: None,
             },
         }
     }
@@ -744,7 +745,7 @@ struct SmallPass<'a> {
     full: &'a StageParams,
     targets: &'a [decoding::Target],
     /// Decoding parameters of the frame (the budget aside).
-    decoding: &'a decoding::DecodingParams,
+    decoding: &'a decoding::DecodingParams<'a>,
 }
 
 /// Stage stopwatch: each [`Laps::lap`] returns the time since the last.
@@ -885,6 +886,12 @@ impl Detector {
         let t0 = Instant::now();
         let mut laps = Laps(t0);
         let (p, ws) = (&self.params, &mut self.ws);
+        // The frame's model fits, each made once ([`decoding::Fits`]).
+        let fits = decoding::Fits::default();
+        let dp = &decoding::DecodingParams {
+            fits: Some(&fits),
+            ..p.decoding
+        };
         let mut st = DetectionStats {
             width: img.width(),
             height: img.height(),
@@ -913,20 +920,15 @@ impl Detector {
             mut attempts,
             mut last_resort,
         } = match workers {
-            None => decoding::decode_candidates(
-                &img,
-                cands,
-                scale,
-                &self.targets,
-                &p.decoding,
-                &mut ws.rscratch,
-            ),
+            None => {
+                decoding::decode_candidates(&img, cands, scale, &self.targets, dp, &mut ws.rscratch)
+            }
             Some(w) => read_ahead::decode_candidates_par(
                 &img,
                 cands,
                 scale,
                 &self.targets,
-                &p.decoding,
+                dp,
                 w,
                 |s: &mut Workspace| &mut s.rscratch,
             ),
@@ -953,12 +955,12 @@ impl Detector {
             let this = &SmallPass {
                 full: &self.full_params,
                 targets: &self.targets,
-                decoding: &p.decoding,
+                decoding: dp,
             };
             match workers {
                 None => {
                     for r in &regions {
-                        let budget = p.decoding.max_attempts.saturating_sub(attempts);
+                        let budget = dp.max_attempts.saturating_sub(attempts);
                         let more = small_region(&img, r, this, budget, ws);
                         attempts += more.attempts;
                         found.extend(more.found);
@@ -975,7 +977,7 @@ impl Detector {
                     // stopped early). The tags found so far are fitted
                     // meanwhile, the threads taking regions and fits as
                     // they come free.
-                    let left = p.decoding.max_attempts.saturating_sub(attempts);
+                    let left = dp.max_attempts.saturating_sub(attempts);
                     let (runs, fits): (Vec<_>, _) = w.install(|| {
                         rayon::join(
                             || {
@@ -984,12 +986,12 @@ impl Detector {
                                     .map(|r| small_region(&img, r, this, left, &mut w.scratch()))
                                     .collect()
                             },
-                            || decoding::verify_ahead(&img, &found, &self.targets, &p.decoding),
+                            || decoding::verify_ahead(&img, &found, &self.targets, dp),
                         )
                     });
                     ahead = fits;
                     for (r, run) in regions.iter().zip(runs) {
-                        let budget = p.decoding.max_attempts.saturating_sub(attempts);
+                        let budget = dp.max_attempts.saturating_sub(attempts);
                         let more = if run.attempts <= budget {
                             run
                         } else {
@@ -1015,13 +1017,13 @@ impl Detector {
                     attempts: &mut usize,
                     rim_decodes: &mut usize,
                     last_resort: &mut Vec<decoding::Found>| {
-            let budget = p.decoding.max_attempts.saturating_sub(*attempts);
+            let budget = dp.max_attempts.saturating_sub(*attempts);
             let (more, last, n) = rim_look(
                 &img,
                 scale,
                 budget,
                 &self.targets,
-                &p.decoding,
+                dp,
                 ws,
                 rims,
                 found,
@@ -1056,12 +1058,12 @@ impl Detector {
             None => {
                 let out = decoding::one_per_tag(found);
                 st.times.dedup = laps.lap();
-                decoding::verify_all(&img, out, &self.targets, &p.decoding)
+                decoding::verify_all(&img, out, &self.targets, dp)
             }
             Some(w) => {
                 let out = decoding::one_per_tag_indexed(found);
                 st.times.dedup = laps.lap();
-                decoding::verify_all_par(&img, out, ahead, &self.targets, &p.decoding, w)
+                decoding::verify_all_par(&img, out, ahead, &self.targets, dp, w)
             }
         };
         st.times.verify = laps.lap();
@@ -1085,13 +1087,13 @@ impl Detector {
                 &img,
                 decoding::one_per_tag(more),
                 &self.targets,
-                &p.decoding,
+                dp,
             ));
             st.times.rim += laps.lap();
         }
         // Last, the readings that stand only where no look found a tag.
         if !last_resort.is_empty() {
-            let more = decoding::last_resorts(&img, last_resort, &out, &self.targets, &p.decoding);
+            let more = decoding::last_resorts(&img, last_resort, &out, &self.targets, dp);
             out.extend(more);
             st.times.verify += laps.lap();
         }
