@@ -148,9 +148,11 @@ impl Gf {
         }
     }
 
-    /// `a * alpha^e` where `e < order`: Horner's rule for the syndromes,
-    /// which the tests check the tabled syndromes against.
-    #[cfg(test)]
+    /// `a * alpha^e` where `e < order`: the decoder's products by a factor
+    /// whose logarithm `e` it took once (Berlekamp-Massey's discrepancy),
+    /// and Horner's rule for the syndromes, which the tests check the
+    /// tabled syndromes against.
+    #[inline]
     fn mul_alpha(&self, a: u8, e: usize) -> u8 {
         if a == 0 {
             0
@@ -546,27 +548,21 @@ impl ReedSolomon {
                 continue;
             }
             // Products by Delta (and by its inverse) with their logarithms
-            // taken once: `gf.mul` looks up both factors' every time.
+            // taken once (`Gf::mul_alpha`): `gf.mul` looks up both
+            // factors' every time.
             let log_delta = usize::from(gf.log[usize::from(delta)]);
-            let times = |log_factor: usize, c: u8| {
-                if c == 0 {
-                    0
-                } else {
-                    gf.exp[log_factor + usize::from(gf.log[usize::from(c)])]
-                }
-            };
             if 2 * len < r + f {
                 // Length change: B <- Lambda / Delta, Lambda <- Lambda - Delta x B.
                 let log_inv = (order - log_delta) % order;
                 for i in 0..=p + 1 {
                     let old = lambda[i];
-                    lambda[i] ^= times(log_delta, tmp[i]);
-                    b[i] = times(log_inv, old);
+                    lambda[i] ^= gf.mul_alpha(tmp[i], log_delta);
+                    b[i] = gf.mul_alpha(old, log_inv);
                 }
                 len = r + f - len;
             } else {
                 for i in 0..=p + 1 {
-                    lambda[i] ^= times(log_delta, tmp[i]);
+                    lambda[i] ^= gf.mul_alpha(tmp[i], log_delta);
                 }
                 b = tmp;
             }
