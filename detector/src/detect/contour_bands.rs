@@ -39,7 +39,7 @@
 
 use rayon::prelude::*;
 
-use super::contours::{follow, offsets, scan, Border, Contours, Labels, EAST, SKIP_BLOCK, WEST};
+use super::contours::{follow, offsets, scan, Border, Contours, Labels, EAST, WEST};
 use super::parallel::Workers;
 
 /// Bands per worker thread: one. Each border crossing a band edge is
@@ -84,8 +84,8 @@ impl Labels for Band<'_> {
     }
 
     #[inline(always)]
-    fn block<'a>(&self, own: &'a [u8], i: usize) -> Option<&'a [u8; SKIP_BLOCK + 2]> {
-        own.get(i.wrapping_sub(self.lo)..)?.first_chunk()
+    fn bytes<'a>(&self, own: &'a [u8], range: std::ops::Range<usize>) -> &'a [u8] {
+        &own[range.start - self.lo..range.end - self.lo]
     }
 
     #[inline(always)]
@@ -183,14 +183,7 @@ fn follow_bands<W: Default + Send>(
                 let lo = ends[k] * pw;
                 let band = Band { lo, copy, above: 0 };
                 scan(&band, rows, pw, ends[k]..ends[k + 1], |own, i| {
-                    // Most pixels tested are not on an edge: the test is
-                    // made here, inline, before the call.
-                    let &[west, v, east] = &own[i - lo - 1..=i - lo + 1] else {
-                        return;
-                    };
-                    if v != 0 && (west == 0 || east == 0) {
-                        start_in_band(&band, own, pw, i, &off, min_len, max_len, part);
-                    }
+                    start_in_band(&band, own, pw, i, &off, min_len, max_len, part);
                 });
             });
     });
@@ -207,10 +200,11 @@ fn follow_bands<W: Default + Send>(
     }
 }
 
-/// The band's step 1 at pixel `i`, a foreground pixel next to background
-/// (see the module documentation): an outer border, if the pixel starts
-/// one, else a hole border. Its left and right neighbours are in the band
-/// (the padded image's border columns are background).
+/// The band's step 1 at pixel `i`, one the scan's mask marked as starting
+/// a border by the band's labels (so foreground: labels never turn back to
+/// background; see `contours::start_mask`): an outer border, if the pixel
+/// starts one, else a hole border. Its left and right neighbours are in
+/// the band (the padded image's border columns are background).
 #[allow(clippy::too_many_arguments)]
 fn start_in_band(
     b: &Band<'_>,
