@@ -427,22 +427,26 @@ mod tests {
         assert_eq!(c.points_of(outer)[0], [1, 1]);
     }
 
+    /// Suzuki & Abe's step 1 at pixel `i` of `f`, as they write it: the
+    /// border that starts there, if one does.
+    fn border_at(f: &[u8], i: usize) -> Option<Border> {
+        let v = f[i];
+        let outer = v == 1 && f[i - 1] == 0;
+        let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
+        (outer || hole).then_some(Border {
+            start: i,
+            from: if outer { WEST } else { EAST },
+            hole,
+        })
+    }
+
     /// The scan without the start mask: every pixel tested.
     fn find_contours_pixelwise(f: &mut [u8], pw: usize, ph: usize, out: &mut Contours) {
         out.points.clear();
         out.list.clear();
         let off: [isize; 8] = std::array::from_fn(|k| DY[k] * pw as isize + DX[k]);
         for i in (1..ph - 1).flat_map(|y| (1..pw - 1).map(move |x| y * pw + x)) {
-            let v = f[i];
-            let outer = v == 1 && f[i - 1] == 0;
-            let hole = !outer && (v == 1 || v == 2) && f[i + 1] == 0;
-            if outer || hole {
-                let from = if outer { WEST } else { EAST };
-                let b = Border {
-                    start: i,
-                    from,
-                    hole,
-                };
+            if let Some(b) = border_at(f, i) {
                 follow(&InPlace, f, pw, b, &off, 1, usize::MAX, out);
             }
         }
@@ -523,16 +527,7 @@ mod tests {
                 let (mut a, mut b) = (Contours::default(), Contours::default());
                 find_contours(&mut f, pw, h + 2, 1, usize::MAX, &mut a);
                 scan(&InPlace, &mut g, pw, 1..h + 1, |g, i| {
-                    let v = g[i];
-                    let outer = v == 1 && g[i - 1] == 0;
-                    let hole = !outer && (v == 1 || v == 2) && g[i + 1] == 0;
-                    if outer || hole {
-                        let from = if outer { WEST } else { EAST };
-                        let border = Border {
-                            start: i,
-                            from,
-                            hole,
-                        };
+                    if let Some(border) = border_at(g, i) {
                         follow_by_neighbours(g, pw, border, &mut b);
                     }
                 });
