@@ -444,7 +444,7 @@ mod tests {
     fn find_contours_pixelwise(f: &mut [u8], pw: usize, ph: usize, out: &mut Contours) {
         out.points.clear();
         out.list.clear();
-        let off: [isize; 8] = std::array::from_fn(|k| DY[k] * pw as isize + DX[k]);
+        let off = offsets(pw);
         for i in (1..ph - 1).flat_map(|y| (1..pw - 1).map(move |x| y * pw + x)) {
             if let Some(b) = border_at(f, i) {
                 follow(&InPlace, f, pw, b, &off, 1, usize::MAX, out);
