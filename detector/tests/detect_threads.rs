@@ -36,8 +36,8 @@ fn counts(s: &DetectionStats) -> [usize; 11] {
 /// threads pinned, as by default), and with 2 threads left unpinned
 /// (detectors reused across frames, as a camera loop does), and checks
 /// that every result and count agrees. Returns the one-thread detector's
-/// detections and small-tag regions over the frames.
-fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (usize, usize) {
+/// detections, small-tag regions and rim-look decodes over the frames.
+fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (usize, usize, usize) {
     let make = |threads, pin_threads| {
         Detector::new(DetectorConfig {
             threads,
@@ -49,11 +49,12 @@ fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (us
     let mut one = make(1, false);
     let mut many: Vec<Detector> = THREADS.iter().map(|&t| make(t, true)).collect();
     many.push(make(2, false));
-    let (mut total, mut regions) = (0, 0);
+    let (mut total, mut regions, mut rims) = (0, 0, 0);
     for (i, frame) in frames.iter().enumerate() {
         let want = one.detect(frame);
         total += want.len();
         regions += one.stats().small_regions;
+        rims += one.stats().rim_decodes;
         for det in &mut many {
             let got = det.detect(frame);
             let (threads, pinned) = (det.config().threads, det.config().pin_threads);
@@ -71,7 +72,7 @@ fn same_on_every_thread_count(frames: &[GrayImage], cfg: &DetectorConfig) -> (us
             );
         }
     }
-    (total, regions)
+    (total, regions, rims)
 }
 
 #[test]
@@ -84,7 +85,7 @@ fn cluttered_4k_frames_give_the_same_detections_on_any_thread_count() {
         .iter()
         .map(|&seed| wild_frame(seed, &cam))
         .unzip();
-    let (found, regions) = same_on_every_thread_count(&frames, &DetectorConfig::default());
+    let (found, regions, _) = same_on_every_thread_count(&frames, &DetectorConfig::default());
     assert!(regions > 0);
     let placed: usize = tags.iter().sum();
     assert!(placed >= 4 && found * 2 >= placed, "{found} of {placed}");
@@ -94,7 +95,9 @@ fn cluttered_4k_frames_give_the_same_detections_on_any_thread_count() {
 fn wild_1080p_frames_give_the_same_detections_on_any_thread_count() {
     let cam = camera(1080);
     let frames: Vec<_> = (0..4).map(|i| wild_frame(0xC0FFEE + i, &cam).0).collect();
-    same_on_every_thread_count(&frames, &DetectorConfig::default());
+    // Frames where the rim look decodes rims too.
+    let (_, _, rims) = same_on_every_thread_count(&frames, &DetectorConfig::default());
+    assert!(rims > 0, "no rim decoded");
     // Without downsampling (no small-tag pass, full-size bands) and with a
     // tight candidate cap (the decode budget runs out mid-frame).
     let full = DetectorConfig {
@@ -141,7 +144,7 @@ fn small_tags_give_the_same_detections_on_any_thread_count() {
         Scene::new(family, 10 + k, 1920, 1080, h).paint(&mut img);
     }
     let img = imageproc::filter::gaussian_blur_f32(&img, 0.6);
-    let (found, regions) =
+    let (found, regions, _) =
         same_on_every_thread_count(std::slice::from_ref(&img), &DetectorConfig::default());
     assert!(
         found >= 6 && regions >= 6,
@@ -204,7 +207,7 @@ fn tags_across_band_edges_give_the_same_detections_on_any_thread_count() {
     for (w, h, seed) in [(1920, 1080, 21), (1283, 723, 22), (1601, 1201, 23)] {
         let (img, placed) = tags_on_band_edges(w, h, seed);
         let frames = std::slice::from_ref(&img);
-        let (found, _) = same_on_every_thread_count(frames, &DetectorConfig::default());
+        let (found, _, _) = same_on_every_thread_count(frames, &DetectorConfig::default());
         assert!(found * 3 >= placed * 2, "{w}x{h}: {found} of {placed}");
         // At full resolution the bands fall on other rows.
         let full = DetectorConfig {
@@ -274,4 +277,36 @@ fn a_threaded_detector_can_move_between_threads() {
     let found = std::thread::spawn(move || det.detect(&img)).join().unwrap();
     assert_eq!(found.len(), 1);
     assert_eq!(found[0].id, 42);
+}
+
+#[test]
+fn a_frames_total_time_covers_its_stages_within_the_call() {
+    // `total` is the frame's time as the caller's clock sees it, no less
+    // than its stages together (they run one after another) and no more
+    // than the call: with worker threads it is measured around the whole
+    // call, the threads' waking included.
+    let frame = wild_frame(0xC0FFEE, &camera(1080)).0;
+    for threads in [1, 2] {
+        let mut det = Detector::new(DetectorConfig {
+            threads,
+            ..DetectorConfig::default()
+        })
+        .unwrap();
+        for _ in 0..3 {
+            let t = std::time::Instant::now();
+            det.detect(&frame);
+            let wall = t.elapsed();
+            let times = det.stats().times;
+            let stages: std::time::Duration = times
+                .iter()
+                .filter(|(name, _)| *name != "total")
+                .map(|(_, d)| d)
+                .sum();
+            assert!(
+                stages <= times.total && times.total <= wall,
+                "{threads} threads: stages {stages:?}, total {:?}, call {wall:?}",
+                times.total
+            );
+        }
+    }
 }

@@ -198,7 +198,9 @@ pub struct StageTimes {
     /// Model fit of each detection (with worker threads, of those the
     /// fits made beside [`StageTimes::small`] did not cover).
     pub verify: Duration,
-    /// Whole frame.
+    /// Whole frame: the whole call of [`Detector::detect`], with worker
+    /// threads the time they take to come awake included (the stages
+    /// above run once they are).
     pub total: Duration,
 }
 
@@ -868,12 +870,14 @@ impl Detector {
         // tenth of a 4K frame in all). Taken out of `self` for the call; a
         // panic in a stage leaves the detector without its pool (one
         // thread), not broken.
+        let t0 = Instant::now();
         let workers = self.workers.take();
         let out = match &workers {
             None => self.detect_on(img, None),
             Some(w) => w.install_awake(|| self.detect_on(img, Some(w))),
         };
         self.workers = workers;
+        self.stats.times.total = t0.elapsed();
         out
     }
 
@@ -1099,7 +1103,7 @@ impl Detector {
         }
         st.decode_attempts = attempts;
         st.detections = out.len();
-        st.times.total = t0.elapsed();
+        // `total` is set by `detect`, around the pool's waking too.
         self.stats = st;
         out
     }
