@@ -124,7 +124,9 @@ impl<S: Default + Send> Workers<S> {
     /// take its part of the broadcast while waiting inside it and stay
     /// awake there until `f` returned, which the piece it held kept `f`
     /// from doing. With two threads, two processes on two cores, that hung
-    /// the detector about once in 2000 frames of the wild set. Once every
+    /// a trial version of the detector (one whose rim look read ahead on
+    /// the threads too, keeping them busier at a frame's end) within 200
+    /// to 500 frames of the wild set, in each of two runs. Once every
     /// other thread is awake with no work of `f` under it, each piece of
     /// `f` it takes runs inside its awake loop, and the loop ends when `f`
     /// returns.
