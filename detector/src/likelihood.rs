@@ -378,15 +378,14 @@ impl Codebook {
         let ng = self.groups.len();
         // Sum of z over the black cells of every pattern of each group,
         // once: the seen grids' patterns (`turned`) are over the upright
-        // groups at every rotation.
-        let mut table = vec![0.0f64; ng * 256];
-        for (g, cells) in self.groups.iter().enumerate() {
+        // groups at every rotation. One 256-entry table per group, so that
+        // a pattern byte indexes it with no bounds check.
+        let mut tables = vec![[0.0f64; 256]; ng];
+        for (cells, t) in self.groups.iter().zip(&mut tables) {
             let zg: [f64; GROUP] = std::array::from_fn(|b| match cells[b] {
                 usize::MAX => 0.0,
                 c => z[c],
             });
-            let t = &mut table[g * 256..(g + 1) * 256];
-            t[0] = 0.0;
             for v in 1..256usize {
                 t[v] = t[v & (v - 1)] + zg[v.trailing_zeros() as usize];
             }
@@ -397,10 +396,6 @@ impl Codebook {
         // that their chains overlap instead of each waiting on the last
         // addition's latency. Each sum keeps its own order, so the dot
         // products are the same to the bit.
-        let tables: Vec<&[f64; 256]> = table
-            .chunks_exact(256)
-            .map(|t| t.try_into().expect("a table of 256 sums"))
-            .collect();
         let mut k = 0;
         for block in self.turned.chunks(ng * DOT_LANES) {
             let lanes = block.len() / ng;

@@ -887,8 +887,7 @@ impl Detector {
         img: GrayView<'_>,
         workers: Option<&Workers<Workspace>>,
     ) -> Vec<Detection> {
-        let t0 = Instant::now();
-        let mut laps = Laps(t0);
+        let mut laps = Laps(Instant::now());
         let (p, ws) = (&self.params, &mut self.ws);
         // The frame's model fits, each made once ([`decoding::Fits`]).
         let fits = decoding::Fits::default();
