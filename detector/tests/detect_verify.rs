@@ -517,9 +517,10 @@ fn tags_with_two_hidden_corners_the_fit_places_stand_as_a_last_resort() {
 
 /// Five tags of the wild set under a glare and an occluder (a triangle,
 /// flush tape, an inner or a same-side shape) that hide some of their
-/// corners (`fixtures/wild/glare-print-crops.csv`, 29-37 px): their readings under the glare were refused for the hidden
-/// corners, which nothing but the fit of the tag's model placed, and none
-/// of the five was found. Kept now where the print's fixed look, aligned
+/// corners (`fixtures/wild/glare-print-crops.csv`, 29-37 px): their
+/// readings under the glare were refused for the hidden corners, which
+/// nothing but the fit of the tag's model placed, and none of the five
+/// was found. Kept now where the print's fixed look, aligned
 /// on its own from the fitted corners, puts every hidden corner within
 /// 1.5 px of the fit's: each is found with some corner estimated and every
 /// corner within 1.5 px of the truth.

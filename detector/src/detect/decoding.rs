@@ -894,18 +894,7 @@ fn unfitted_on_aligned(
 /// every corner a sigma.
 fn on_aligned_print(d: Detection, v: &Verified, aligned: &[[f64; 2]; 4]) -> Option<Detection> {
     let side = mean_side(&v.corners);
-    // The aligned print's corners in the reading's order: the turn that
-    // brings them nearest the fit's (the code resolves the turn; the
-    // print's bars and ears do too, but are a pixel or two wide here).
-    let (gap, corners) = (0..4)
-        .map(|k| {
-            let c: [[f64; 2]; 4] = std::array::from_fn(|i| aligned[(i + k) % 4]);
-            let gap = (0..4)
-                .map(|i| norm(sub(c[i], v.corners[i])))
-                .fold(0.0, f64::max);
-            (gap, c)
-        })
-        .min_by(|a, b| a.0.total_cmp(&b.0))?;
+    let (gap, corners) = nearest_turn(aligned, &v.corners);
     // An occluded reading (by the nearest codeword) stands only where
     // the fit sees every corner, as a quad's does
     // (`occluded_reading_stands`): on the wild set, of 56 such rim
@@ -924,6 +913,30 @@ fn on_aligned_print(d: Detection, v: &Verified, aligned: &[[f64; 2]; 4]) -> Opti
         placed: true,
         ..d
     })
+}
+
+/// The aligned print's corners `aligned` in the order of `corners` (TL,
+/// BL, BR, TR): the quarter turn that brings them nearest, with the
+/// farthest distance (px) between the two squares' corners under it. The
+/// code resolves a reading's turn; the print's bars and ears do too, but
+/// are a pixel or two wide on the tags the print is aligned on.
+fn nearest_turn(aligned: &[[f64; 2]; 4], corners: &[[f64; 2]; 4]) -> (f64, [[f64; 2]; 4]) {
+    let turned = |k: usize| -> [[f64; 2]; 4] { std::array::from_fn(|i| aligned[(i + k) % 4]) };
+    let gap = |c: &[[f64; 2]; 4]| {
+        (0..4)
+            .map(|i| norm(sub(c[i], corners[i])))
+            .fold(0.0, f64::max)
+    };
+    (1..4)
+        .map(turned)
+        .fold((gap(aligned), *aligned), |best, c| {
+            let g = gap(&c);
+            if g.total_cmp(&best.0).is_lt() {
+                (g, c)
+            } else {
+                best
+            }
+        })
 }
 
 /// Reading `d` as it is, unless it is faint (`decode::QuadReading::faint`:
@@ -998,16 +1011,10 @@ fn print_agrees_at(img: &GrayView<'_>, corners: &[[f64; 2]; 4], hidden: [bool; 4
     let Some(aligned) = print_aligned_from(img, corners) else {
         return false;
     };
-    let gap = |c: &[[f64; 2]; 4], keep: &dyn Fn(usize) -> bool| {
-        (0..4)
-            .filter(|&i| keep(i))
-            .map(|i| norm(sub(c[i], corners[i])))
-            .fold(0.0, f64::max)
-    };
+    let (_, turned) = nearest_turn(&aligned, corners);
     (0..4)
-        .map(|k| std::array::from_fn::<_, 4, _>(|i| aligned[(i + k) % 4]))
-        .min_by(|a, b| gap(a, &|_| true).total_cmp(&gap(b, &|_| true)))
-        .is_some_and(|c| gap(&c, &|i| hidden[i]) <= GLARE_PRINT_AGREEMENT_PX)
+        .filter(|&i| hidden[i])
+        .all(|i| norm(sub(turned[i], corners[i])) <= GLARE_PRINT_AGREEMENT_PX)
 }
 
 /// The target whose family detection `d` was read in.
@@ -2068,6 +2075,48 @@ mod tests {
             decode: DecodeParams::default(),
             fits: None,
         }
+    }
+
+    /// The aligned print's corners are matched to a reading's under the
+    /// quarter turn that brings them nearest, the first of equally near
+    /// ones, with the farthest corner's distance under it.
+    #[test]
+    fn the_aligned_print_is_matched_under_its_nearest_turn() {
+        let q = [[10.0, 10.0], [10.0, 30.0], [30.0, 30.0], [30.0, 10.0]];
+        for k in 0..4 {
+            let mut turned: [[f64; 2]; 4] = std::array::from_fn(|i| q[(i + 4 - k) % 4]);
+            turned[(2 + k) % 4][0] += 0.5;
+            let (gap, c) = nearest_turn(&turned, &q);
+            assert_eq!(gap, 0.5, "turn {k}");
+            assert_eq!(c[0], q[0], "turn {k}");
+            assert_eq!(c[2], [30.5, 30.0], "turn {k}");
+        }
+        // A square matched to itself under no turn, not under another
+        // as near (a degenerate square, all one point).
+        let p = [[5.0, 5.0]; 4];
+        assert_eq!(nearest_turn(&p, &p), (0.0, p));
+    }
+
+    /// A hidden corner is confirmed where the print, aligned from the
+    /// corners, puts it within `GLARE_PRINT_AGREEMENT_PX`, and not where
+    /// the corners put it 3 px off the print; no print, a collapsed quad
+    /// or NaN corners confirm nothing (and do not panic).
+    #[test]
+    fn the_aligned_print_confirms_hidden_corners_it_agrees_with() {
+        let m = [[36.0, 4.0], [-3.0, 34.0]];
+        let (img, truth) = super::print_align::tests::print(m, 1.0);
+        let view = GrayView::from(&img);
+        assert!(print_agrees_at(&view, &truth, [true; 4]));
+        let mut moved = truth;
+        moved[2][0] += 3.0;
+        let hidden_br = [false, false, true, false];
+        assert!(!print_agrees_at(&view, &moved, hidden_br));
+        // Where the moved corner is not the hidden one, it is not judged.
+        assert!(print_agrees_at(&view, &moved, [true, false, false, false]));
+        let blank = image::GrayImage::from_pixel(160, 160, image::Luma([200]));
+        assert!(!print_agrees_at(&GrayView::from(&blank), &truth, [true; 4]));
+        assert!(!print_agrees_at(&view, &[[80.0, 80.0]; 4], [true; 4]));
+        assert!(!print_agrees_at(&view, &[[f64::NAN; 2]; 4], [true; 4]));
     }
 
     /// A target of `fam` at its default limit.

@@ -558,7 +558,7 @@ fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use image::GrayImage;
 
@@ -595,7 +595,7 @@ mod tests {
     /// of `tag_shapes` but the digits) through the affine map `m` (tag
     /// units to px) about `C`, 4 x 4 supersampled, Gaussian-blurred by
     /// `blur` px; and its corners TL, BL, BR, TR.
-    fn print(m: [[f64; 2]; 2], blur: f32) -> (GrayImage, [[f64; 2]; 4]) {
+    pub(crate) fn print(m: [[f64; 2]; 2], blur: f32) -> (GrayImage, [[f64; 2]; 4]) {
         let shapes = tag_shapes(Family::ct14(), 200).unwrap();
         let det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
         let inv = [
