@@ -3,7 +3,7 @@
 //! with `Family::from_spec` (the paper's RS(20,4) variant of ct14) is
 //! detected end to end.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig, Family, FamilySetting, GrayView};

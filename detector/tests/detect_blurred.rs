@@ -5,7 +5,7 @@
 //! with the right ids and corners (none rough), each confirmed by the model
 //! fit.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig};

@@ -2,7 +2,7 @@
 //! distances and angles of its simulation sweeps (a subset here; the full
 //! sweeps run in the ignored test `full_clean_sweeps` and the benchmark).
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detection, Detector, DetectorConfig, Family};

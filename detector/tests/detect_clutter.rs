@@ -2,7 +2,7 @@
 //! (a black disc around a white square with random cells), text-like
 //! strokes and noise give no detection of either family.
 
-mod common;
+use crate::common;
 
 use common::{in_poly, Rng};
 use coppertag::{Detector, DetectorConfig};
@@ -140,10 +140,9 @@ pub fn clutter(seed: u64) -> GrayImage {
 }
 
 /// False detections and quads decoded over `n` scenes. The scenes are
-/// split across the machine's cores (one detector per rayon worker):
-/// `cargo test` runs its test binaries one after another, and this one
-/// holds a single test, so it ran on one core for half a minute while
-/// the other sat idle.
+/// split across the machine's cores (one detector per rayon worker): the
+/// single test of this file takes half a minute of CPU, and run on one
+/// core it was the suite's last test long after the others had ended.
 fn count_false(n: u64) -> (usize, usize) {
     use rayon::prelude::*;
     (0..n)

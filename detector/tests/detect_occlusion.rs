@@ -2,7 +2,7 @@
 //! 15, 20 % of the data square) and procedural variants of them at random
 //! poses, occluder shades and cut positions.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig, Family};

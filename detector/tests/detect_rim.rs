@@ -7,7 +7,7 @@
 //! only where the model fit agrees with the alignment, so none may be
 //! rough.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig};

@@ -1,7 +1,7 @@
 //! Bad input never panics and finishes in bounded time: empty, tiny, huge,
 //! uniform, noisy and arbitrary images.
 
-mod common;
+use crate::common;
 
 use common::Rng;
 use coppertag::{Detector, DetectorConfig, FamilySetting};

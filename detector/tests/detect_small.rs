@@ -3,7 +3,7 @@
 //! data squares of 22-40 px that the downsampled pass alone loses, with the
 //! right ids and sub-pixel corners, and must not touch large tags.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig, Family};

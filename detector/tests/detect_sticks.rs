@@ -3,7 +3,7 @@
 //! into pieces, while all four corners stay visible. The detector must
 //! still close the quad across the cuts (issue 11).
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detector, DetectorConfig, Family};

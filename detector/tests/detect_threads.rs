@@ -3,7 +3,7 @@
 //! to the bit, and the same stage counts), and absurd thread counts are a
 //! named error.
 
-mod common;
+use crate::common;
 
 use common::wild::{camera, wild_frame};
 use common::*;

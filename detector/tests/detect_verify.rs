@@ -3,7 +3,7 @@
 //! hidden corner must say it is estimated, and the corner uncertainties
 //! must cover the truth.
 
-mod common;
+use crate::common;
 
 use common::*;
 use coppertag::{Detection, Detector, DetectorConfig, Family};

@@ -7,10 +7,10 @@
 //! claims to keep behaviour is checked against it.
 //!
 //! After a deliberate change of behaviour, regenerate the file with
-//! `COPPERTAG_BLESS=1 cargo test -p coppertag --profile ci --test golden_detections`
+//! `COPPERTAG_BLESS=1 cargo test -p coppertag --profile ci --test suite golden_detections::`
 //! and review the diff.
 
-mod common;
+use crate::common;
 
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};

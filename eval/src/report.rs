@@ -92,6 +92,23 @@ pub struct Machine {
     pub memory: u64,
 }
 
+/// Whether a run's times are quoted: only when its detector ran as one
+/// session. Sessions side by side (the robustness sets, each on a shard of
+/// the images; every run of the gate's quick run, `reproduce --no-times`)
+/// share the machine's cores and caches and slow each other down.
+fn timed(s: &Summary) -> bool {
+    s.sessions == 1
+}
+
+/// A run's median time per image (ms), or a dash when it was not timed.
+fn median_ms(s: &Summary) -> String {
+    if timed(s) {
+        format!("{:.2}", s.time_ms.median)
+    } else {
+        "-".to_string()
+    }
+}
+
 /// Table I: one row per marker system over the four sweeps.
 fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String) {
     let _ = writeln!(
@@ -117,11 +134,28 @@ fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String)
         }
         let markers: usize = rows.iter().map(|s| s.markers).sum();
         let found: usize = rows.iter().map(|s| s.found).sum();
+        // Only runs of one detector session are timed (see `timed`).
         let times: Vec<f64> = rows
             .iter()
+            .filter(|s| timed(s))
             .flat_map(|s| s.per_image.iter().filter_map(|p| p.ms))
             .collect();
         let t = crate::metrics::Stats::of(&times);
+        let ms = |v: f64| {
+            if t.n == 0 {
+                "-".to_string()
+            } else {
+                format!("{v:.2}")
+            }
+        };
+        // An empty CSV field where the table shows a dash.
+        let csv_ms = |v: f64| {
+            if t.n == 0 {
+                String::new()
+            } else {
+                format!("{v:.4}")
+            }
+        };
         let cpu_core = rows.iter().map(|s| s.cpu_percent).sum::<f64>() / rows.len() as f64;
         let mem = rows.iter().map(|s| s.peak_memory_mib).fold(0.0, f64::max);
         let mem_pct = 100.0 * mem * (1u64 << 20) as f64 / m.memory.max(1) as f64;
@@ -133,15 +167,15 @@ fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String)
         let p = paper_table1(sys).unwrap_or(("-", "-", "-", "-"));
         let _ = writeln!(
             out,
-            "| {} | {} ({}) | {:.2} ({}) | {:.2} | {:.2} / {:.2} | {:.2} ({}) | {:.1} | {:.2} ({}) | {:.0} |",
+            "| {} | {} ({}) | {} ({}) | {} | {} / {} | {:.2} ({}) | {:.1} | {:.2} ({}) | {:.0} |",
             display(sys),
             pct(rate),
             p.0,
-            t.mean,
+            ms(t.mean),
             p.1,
-            t.median,
-            t.p95,
-            t.max,
+            ms(t.median),
+            ms(t.p95),
+            ms(t.max),
             cpu_core / m.cores.max(1) as f64,
             p.2,
             cpu_core,
@@ -151,11 +185,11 @@ fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String)
         );
         let _ = writeln!(
             csv,
-            "{sys},{markers},{found},{rate:.6},{:.4},{:.4},{:.4},{:.4},{:.3},{:.3},{mem_pct:.3},{mem:.1},{},{},{},{}",
-            t.mean,
-            t.median,
-            t.p95,
-            t.max,
+            "{sys},{markers},{found},{rate:.6},{},{},{},{},{:.3},{:.3},{mem_pct:.3},{mem:.1},{},{},{},{}",
+            csv_ms(t.mean),
+            csv_ms(t.median),
+            csv_ms(t.p95),
+            csv_ms(t.max),
             cpu_core / m.cores.max(1) as f64,
             cpu_core,
             p.0.trim_end_matches('%'),
@@ -392,16 +426,25 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
     for s in rows {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {:.2} |",
+            "| {} | {} | {} | {} |",
             s.dataset,
             display(&s.marker),
             pct(s.detection_rate),
-            s.time_ms.median
+            median_ms(s)
         );
         let _ = writeln!(
             csv,
-            "{},{},{},{},{:.4},{:.4}",
-            s.dataset, s.marker, s.markers, s.found, s.detection_rate, s.time_ms.median
+            "{},{},{},{},{:.4},{}",
+            s.dataset,
+            s.marker,
+            s.markers,
+            s.found,
+            s.detection_rate,
+            if timed(s) {
+                format!("{:.4}", s.time_ms.median)
+            } else {
+                String::new()
+            }
         );
     }
 }
@@ -430,11 +473,7 @@ fn runs(summaries: &[Summary], out: &mut String) {
             s.false_positives,
             s.duplicates,
             s.corner_error_real.median,
-            if s.sessions == 1 {
-                format!("{:.2}", s.time_ms.median)
-            } else {
-                "-".to_string()
-            }
+            median_ms(s)
         );
     }
 }

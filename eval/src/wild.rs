@@ -115,7 +115,9 @@ pub struct WildRun {
     pub wrong_ids: usize,
     /// Second detections of a marker already taken.
     pub duplicates: usize,
-    /// Detection time per image, ms.
+    /// Detection time per image, ms; empty when the run's detector
+    /// sessions ran several at once (`RunInfo::sessions`), whose times are
+    /// not comparable with one session's.
     pub times_ms: Vec<f64>,
     /// One per true marker, in image and truth order.
     pub outcomes: Vec<MarkerOutcome>,
@@ -186,7 +188,9 @@ pub fn evaluate(
         if r.error.is_some() {
             w.image_errors += 1;
         }
-        w.times_ms.extend(r.ms);
+        if run.info.sessions == 1 {
+            w.times_ms.extend(r.ms);
+        }
         let dets = &r.detections;
         let mut used = vec![false; dets.len()];
         for m in truth {
@@ -440,6 +444,26 @@ pub(crate) mod tests {
         assert_eq!((w.duplicates, w.wrong_ids, w.false_positives), (1, 1, 1));
         assert!(!w.tag_free);
         assert!(w.outcomes.iter().all(|o| o.factors.is_empty()));
+    }
+
+    /// A run whose detector sessions ran side by side keeps no times (they
+    /// are not one session's); its markers are scored all the same.
+    #[test]
+    fn a_run_of_sessions_side_by_side_is_scored_but_not_timed() {
+        let cam = CameraModel::new(640, 480, [600.0, 600.0, 319.5, 239.5], [0.0; 5]).unwrap();
+        let sq = square(100.0, 100.0, 40.0);
+        let ds = dataset_of(
+            &[0, 1],
+            (0..2).map(|i| test_marker(i, 7, sq, None)).collect(),
+        );
+        let mut run = run_of("coppertag", vec![(0, vec![det(7, sq)]), (1, vec![])]);
+        let one = evaluate(&run, &ds, None, &cam, MatchRule::default());
+        assert_eq!(one.times_ms, [1.0, 2.0]);
+        run.info.sessions = 2;
+        let two = evaluate(&run, &ds, None, &cam, MatchRule::default());
+        assert!(two.times_ms.is_empty());
+        assert_eq!(two.outcomes, one.outcomes);
+        assert_eq!(two.outcomes[0].status, Status::Correct);
     }
 
     /// A tag drawn by the generator reads at its true corners; the same

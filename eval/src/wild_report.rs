@@ -182,6 +182,16 @@ fn fp_cell(r: &crate::wild_summary::SystemRow) -> String {
     format!("{all} ({})", each.join(", "))
 }
 
+/// Time per frame, median / p95 / max (ms); "-" when the system's runs
+/// were not timed (their detector sessions ran several at once, as in the
+/// gate's quick run, which scores detection only).
+fn time_cell(t: &crate::metrics::Stats) -> String {
+    if t.n == 0 {
+        return "-".into();
+    }
+    format!("{:.2} / {:.2} / {:.2}", t.median, t.p95, t.max)
+}
+
 /// Corners within 2 sigma: all, then (observed / estimated); "-" for a
 /// system that reports no sigma, or for a split with no corners.
 fn sigma_cell(c: Option<&SigmaCoverage>) -> String {
@@ -309,7 +319,7 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
     for r in &w.systems {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {:.2} / {:.2} / {:.2} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {:.2}% / {:.2}% | {:.2} / {:.2} | {} | {} / {} / {} ({}) | {} | {} | {} | {} |",
             display(&r.system),
             r.markers,
             pct(r.detection_rate),
@@ -327,9 +337,7 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
             num(r.jitter_translation_mm, 2),
             num(r.jitter_rotation_deg, 3),
             r.jitter_groups,
-            r.time_ms.median,
-            r.time_ms.p95,
-            r.time_ms.max,
+            time_cell(&r.time_ms),
             r.min_detectable_side_px
                 .map_or(format!("no bin >= {:.0}%", 100.0 * MIN_DETECTABLE_RATE), |(lo, hi)| {
                     format!("{lo:.0}-{hi:.0}")
@@ -386,4 +394,19 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         scenarios_csv(&w.scenarios).as_bytes(),
     )?;
     Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics::Stats;
+
+    #[test]
+    fn an_untimed_system_shows_a_dash_for_its_times() {
+        assert_eq!(
+            time_cell(&Stats::of(&[1.0, 2.0, 4.0])),
+            "2.00 / 4.00 / 4.00"
+        );
+        assert_eq!(time_cell(&Stats::of(&[])), "-");
+    }
 }

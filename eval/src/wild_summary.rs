@@ -607,15 +607,17 @@ impl WildSummary {
              corner_error_estimated_median_px,corner_error_estimated_p95_px\n",
         );
         for r in &self.systems {
+            // Empty time fields for untimed runs (sessions side by side).
+            let timed = |v: f64| opt((r.time_ms.n > 0).then_some(v), 4);
             s.push_str(&format!(
-                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{:.4},{:.4},{:.4},{},{},\"{}\",{},{}\n",
+                "{},{},{},{},{},{},{:.6},{:.6},{},{},{},{:.4},{},{},{},{:.4},{:.4},{:.4},{:.4},{:.4},{:.4},{:.6},{},{},{},{},{},{},{},{},{},\"{}\",{},{}\n",
                 r.system, r.images, r.markers, r.correct, r.rough, r.missed, r.detection_rate, r.rough_rate,
                 r.wrong_ids, r.false_positives_tagged, r.tag_free_images, r.tag_free_megapixels,
                 r.tag_free_false_positives, opt(r.false_positives_per_mp, 6), r.translation_mm.n,
                 r.translation_mm.median, r.translation_mm.p95, r.translation_pct.median, r.translation_pct.p95,
                 r.rotation_deg.median, r.rotation_deg.p95, r.flipped_rate, r.jitter_groups,
                 opt(r.jitter_corner_px, 6), opt(r.jitter_translation_mm, 6), opt(r.jitter_rotation_deg, 6),
-                r.time_ms.median, r.time_ms.p95, r.time_ms.max,
+                timed(r.time_ms.median), timed(r.time_ms.p95), timed(r.time_ms.max),
                 opt(r.min_detectable_side_px.map(|m| m.0), 3), opt(r.min_detectable_side_px.map(|m| m.1), 3),
                 r.false_positives_per_mp_by_set
                     .iter()
@@ -742,6 +744,40 @@ pub(crate) mod tests {
         let s = summarise(&[run("coppertag", vec![lone])]);
         assert_eq!(s.systems[0].jitter_groups, 0);
         assert!(s.systems[0].jitter_corner_px.is_none());
+    }
+
+    /// Runs without times (sessions side by side) leave the time fields of
+    /// `wild-systems.csv` empty rather than 0 ms.
+    #[test]
+    fn untimed_runs_leave_the_time_fields_empty() {
+        let field = |s: &WildSummary, name: &str| -> String {
+            let csv = s.systems_csv();
+            let mut lines = csv.lines();
+            let col = lines
+                .next()
+                .unwrap()
+                .split(',')
+                .position(|h| h == name)
+                .unwrap();
+            lines
+                .next()
+                .unwrap()
+                .split(',')
+                .nth(col)
+                .unwrap()
+                .to_string()
+        };
+        let timed = summarise(&[run("coppertag", vec![outcome(0, Status::Correct, &[])])]);
+        assert_eq!(field(&timed, "time_median_ms"), "2.0000");
+        assert_eq!(field(&timed, "time_max_ms"), "3.0000");
+        let mut untimed = run("coppertag", vec![outcome(0, Status::Correct, &[])]);
+        untimed.times_ms.clear();
+        let untimed = summarise(&[untimed]);
+        assert_eq!(untimed.systems[0].time_ms.n, 0);
+        for name in ["time_median_ms", "time_p95_ms", "time_max_ms"] {
+            assert_eq!(field(&untimed, name), "", "{name}");
+        }
+        assert_eq!(field(&untimed, "correct"), "1");
     }
 
     #[test]

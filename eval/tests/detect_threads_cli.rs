@@ -2,7 +2,7 @@
 //! detections on any number of threads, pinned or not, and the flags'
 //! misuse refused with exit code 2 before any image is read.
 
-mod common;
+use crate::common;
 use common::{coppertag, repo, succeed};
 
 /// `detect --json` on the golden ct14 tag 1 with `args`, its stdout with

@@ -11,10 +11,10 @@ use coppertag_eval::runlog::{self, RunLog};
 use coppertag_eval::runner::{self, DetectorSpec};
 use coppertag_eval::truth::Dataset;
 
-mod common;
+use crate::common;
 use common::{coppertag, render_rotated_z, repo, succeed};
 
-/// A 13-image rotated-z CopperTag dataset, rendered once per test binary.
+/// A 13-image rotated-z CopperTag dataset, rendered once per test run.
 fn dataset() -> &'static Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
@@ -126,6 +126,40 @@ fn runs_of_parallel_sessions_show_no_time() {
     };
     assert!(time(rows[0]).parse::<f64>().unwrap() > 0.0, "{}", rows[0]);
     assert_eq!(time(rows[1]), "-", "{}", rows[1]);
+    // Table I's times come from the one-session run alone, and are dashes
+    // with none (`reproduce --no-times`, the gate's quick run); so is the
+    // baseline's record of the median.
+    let table1_times = |summaries: &[coppertag_eval::metrics::Summary], name: &str| {
+        let md = coppertag_eval::report::write_report(
+            summaries,
+            &tmp.path().join(name),
+            machine,
+            "",
+            None,
+        )
+        .unwrap();
+        let row = md
+            .lines()
+            .find(|l| l.starts_with("| CopperTag |"))
+            .unwrap_or_else(|| panic!("no Table I row: {md}"))
+            .to_string();
+        let cells: Vec<String> = row.split(" | ").map(str::to_string).collect();
+        (cells[2].clone(), cells[3].clone(), cells[4].clone())
+    };
+    let (mean, median, tail) = table1_times(&summaries, "both");
+    assert!(
+        mean.split(' ').next().unwrap().parse::<f64>().is_ok(),
+        "{mean}"
+    );
+    assert_eq!(median, format!("{:.2}", summaries[0].time_ms.median));
+    assert!(tail.contains(" / ") && !tail.contains('-'), "{tail}");
+    let (mean, median, tail) = table1_times(&summaries[1..], "untimed");
+    assert!(mean.starts_with("- ("), "{mean}");
+    assert_eq!((median.as_str(), tail.as_str()), ("-", "- / -"));
+    let b = baseline_of(&summaries[1..], None, None, "test");
+    assert_eq!(b.entries.values().next().unwrap().time_median_ms, None);
+    let b = baseline_of(&summaries[..1], None, None, "test");
+    assert!(b.entries.values().next().unwrap().time_median_ms.unwrap() > 0.0);
 }
 
 #[test]

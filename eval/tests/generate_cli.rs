@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-mod common;
+use crate::common;
 use common::coppertag;
 
 fn files_in(dir: &Path) -> Vec<String> {

@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::sync::OnceLock;
 
-mod common;
+use crate::common;
 use common::succeed;
 use coppertag_eval::pose_error::{angle_between, rotation_of};
 use coppertag_eval::truth::Dataset;
@@ -180,7 +180,7 @@ struct Fixture {
     camera: serde_json::Value,
 }
 
-/// The dataset, rendered once per test binary.
+/// The dataset, rendered once per test run.
 fn fixture() -> &'static Fixture {
     static F: OnceLock<Fixture> = OnceLock::new();
     F.get_or_init(|| {

@@ -5,7 +5,7 @@
 //! are each told apart by the exit status (0 same, 1 different, 2 bad
 //! input).
 
-mod common;
+use crate::common;
 
 use common::{coppertag, render_rotated_z, repo, succeed};
 use std::path::Path;

@@ -8,7 +8,7 @@ use std::sync::OnceLock;
 use coppertag_eval::runlog::{self, RunLog};
 use coppertag_eval::runner::{RunOutput, RunResources};
 
-mod common;
+use crate::common;
 use common::{coppertag, render_rotated_z};
 
 /// A 13-image rotated-z CopperTag dataset (indices 0, 30, ..., 360) with a

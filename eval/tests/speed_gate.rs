@@ -9,7 +9,7 @@
 use coppertag_eval::gate::{baseline_of, check_speed, Baseline, Tolerances};
 use coppertag_eval::speed::{confirm_failures, estimate, SpeedReport};
 
-mod common;
+use crate::common;
 
 fn saved_run() -> SpeedReport {
     let text = include_str!("fixtures/speed-run.json");

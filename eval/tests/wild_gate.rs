@@ -10,7 +10,7 @@ use coppertag_eval::gate::{baseline_of, check_wild, wild_key, Baseline};
 use coppertag_eval::wild::{MarkerOutcome, Status, WildRun};
 use coppertag_eval::wild_summary::{summarise, WildSummary};
 
-mod common;
+use crate::common;
 use common::coppertag;
 
 fn outcome(index: usize, status: Status) -> MarkerOutcome {

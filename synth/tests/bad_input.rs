@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use coppertag_synth::{DatasetSpec, SynthError};
 
-mod common;
+use crate::common;
 use common::camera_factors;
 
 const GOOD: &str = r#"name = "t"

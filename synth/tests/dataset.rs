@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use coppertag_synth::foxglove::base64;
 use coppertag_synth::{generate, DatasetSpec, GenerateOptions, SynthError};
 
-mod common;
+use crate::common;
 use common::{generate_every, read_tree, run, same_bytes_on_1_and_2_threads};
 
 fn paper_patterns() -> PathBuf {

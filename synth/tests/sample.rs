@@ -7,7 +7,7 @@ use std::path::Path;
 
 use coppertag_synth::{generate, DatasetSpec, GenerateOptions, Shard};
 
-mod common;
+use crate::common;
 use common::{
     camera_factors, csv_rows, load, read_tree, run, same_bytes_on_1_and_2_threads, write,
 };

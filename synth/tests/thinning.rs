@@ -5,7 +5,7 @@
 
 use coppertag_synth::{generate, GenerateOptions};
 
-mod common;
+use crate::common;
 use common::{generate_every, load};
 
 fn spec_text(repeats: usize) -> String {

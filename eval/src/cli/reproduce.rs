@@ -81,6 +81,14 @@ pub struct ReproduceArgs {
     #[arg(long, num_args = 0.., default_values = ["datasets/robustness"])]
     pub untimed: Vec<PathBuf>,
 
+    /// Scores detection only, on every set: each run's detector sessions
+    /// run --jobs at once, as on the --untimed sets, and no table quotes a
+    /// time. For the gate's quick run (`make quick-run`): the gate checks
+    /// detection, errors and corners from it, and measures speed apart,
+    /// interleaved with the peers (`coppertag speed`).
+    #[arg(long)]
+    pub no_times: bool,
+
     /// Detector sessions at once on the --untimed sets. Default: the number
     /// of cores.
     #[arg(long, short = 'j', value_parser = clap::value_parser!(u16).range(1..=256))]
@@ -287,7 +295,11 @@ pub fn run(args: &ReproduceArgs) -> Result<()> {
                         &format!("{label} detect {marker}"),
                         args.quiet,
                     );
-                    let sessions = if job.untimed { workers } else { 1 };
+                    let sessions = if job.untimed || args.no_times {
+                        workers
+                    } else {
+                        1
+                    };
                     let out = runner::run_parallel(&detector, &ds, sessions, |d, _| {
                         pb.set_position(d as u64)
                     });
