@@ -234,3 +234,48 @@ fn tags_under_glare_or_uneven_light_read_with_the_light_fitted() {
         assert!(d.likelihood && d.corner_sigma.is_some(), "{d:?}");
     }
 }
+
+/// The rendered scenes blur only around the tag ([`blur_around`]), to the
+/// same bytes as blurring the whole frame: tags of 10-240 px at any turn,
+/// under blurs of 0.3-6 px, anywhere in the frame, partly off it, on
+/// backgrounds dark and light.
+#[test]
+fn blurring_around_the_tag_gives_the_whole_frames_blur() {
+    use coppertag::homography::Homography;
+    use nalgebra::Matrix3;
+    let mut rng = Rng::new(5);
+    for k in 0..60 {
+        let (w, h) = (320, 240);
+        let half = rng.range(5.0, 120.0);
+        let turn = rng.range(0.0, 6.3);
+        let c = [rng.range(-60.0, 380.0), rng.range(-60.0, 300.0)];
+        let m = Matrix3::new(
+            half * turn.cos(),
+            -half * turn.sin(),
+            c[0],
+            half * turn.sin(),
+            half * turn.cos(),
+            c[1],
+            0.0,
+            0.0,
+            1.0,
+        );
+        let mut s = Scene::new(
+            coppertag::Family::ct14(),
+            rng.next_u64() % 256,
+            w,
+            h,
+            Homography::from_matrix(m),
+        );
+        s.background = (rng.next_u64() % 256) as u8;
+        let blur = rng.range(0.3, 6.0) as f32;
+        let mut painted = image::GrayImage::from_pixel(w, h, image::Luma([s.background]));
+        s.paint(&mut painted);
+        assert_eq!(
+            blur_around(&painted, blur, s.painted_box(), s.background),
+            imageproc::filter::gaussian_blur_f32(&painted, blur),
+            "scene {k}: tag of {:.0} px at {c:?}, blur {blur:.2} px",
+            2.0 * half
+        );
+    }
+}

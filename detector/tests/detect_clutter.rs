@@ -4,7 +4,7 @@
 
 use crate::common;
 
-use common::{in_poly, Rng};
+use common::{fill_poly, in_poly, Rng};
 use coppertag::{Detector, DetectorConfig};
 use image::GrayImage;
 
@@ -21,13 +21,7 @@ fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
     let ya = y0.max(0.0) as u32;
     let xb = x1.min(w - 1.0).max(0.0) as u32;
     let yb = y1.min(h - 1.0).max(0.0) as u32;
-    for y in ya..=yb {
-        for x in xa..=xb {
-            if in_poly(poly, [f64::from(x), f64::from(y)]) {
-                img.put_pixel(x, y, image::Luma([v]));
-            }
-        }
-    }
+    fill_poly(img, poly, v, xa..=xb, ya..=yb);
 }
 
 fn disc(c: [f64; 2], r: f64) -> Vec<[f64; 2]> {
@@ -165,4 +159,47 @@ fn no_detections_in_clutter() {
     let (bad, attempts) = count_false(1000);
     eprintln!("1000 clutter images: {bad} false detections, {attempts} quads decoded");
     assert_eq!(bad, 0);
+}
+
+/// The row-by-row fill paints exactly the pixels whose centres `in_poly`
+/// accepts, so the scenes are what testing every pixel made: on discs,
+/// turned and squashed quads, and random (self-crossing) polygons with
+/// vertices on pixel centres and rows, partly off the image.
+#[test]
+fn the_row_fill_paints_exactly_the_pixels_in_poly_accepts() {
+    let mut rng = Rng::new(77);
+    for k in 0..300 {
+        let c = [rng.range(-20.0, 140.0), rng.range(-20.0, 100.0)];
+        let poly = match k % 3 {
+            0 => disc(c, rng.range(1.0, 60.0)),
+            1 => quad(
+                c,
+                rng.range(2.0, 90.0),
+                rng.range(0.0, 6.3),
+                rng.range(0.4, 1.0),
+            ),
+            _ => (0..3 + k % 9)
+                .map(|_| {
+                    let p = [c[0] + rng.range(-50.0, 50.0), c[1] + rng.range(-50.0, 50.0)];
+                    // Every other polygon has its vertices on whole pixels.
+                    if k % 2 == 0 {
+                        p.map(f64::round)
+                    } else {
+                        p
+                    }
+                })
+                .collect(),
+        };
+        let (w, h) = (120u32, 90u32);
+        let mut by_rows = GrayImage::new(w, h);
+        fill_poly(&mut by_rows, &poly, 255, 0..=w - 1, 0..=h - 1);
+        let by_pixel = GrayImage::from_fn(w, h, |x, y| {
+            image::Luma([if in_poly(&poly, [f64::from(x), f64::from(y)]) {
+                255
+            } else {
+                0
+            }])
+        });
+        assert_eq!(by_rows, by_pixel, "polygon {k}: {poly:?}");
+    }
 }

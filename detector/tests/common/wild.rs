@@ -8,7 +8,7 @@
 use coppertag::Family;
 use image::GrayImage;
 
-use super::{in_poly, Camera, Occluder, Rng, Scene, SCENARIOS};
+use super::{fill_poly, Camera, Occluder, Rng, Scene, SCENARIOS};
 
 /// Most tags in a frame (at least one).
 const MAX_TAGS: u64 = 10;
@@ -51,13 +51,7 @@ fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
     }
     let (xa, ya) = (x0.max(0.0) as u32, y0.max(0.0) as u32);
     let (xb, yb) = (x1.min(w - 1.0) as u32, y1.min(h - 1.0) as u32);
-    for y in ya..=yb {
-        for x in xa..=xb {
-            if in_poly(poly, [f64::from(x), f64::from(y)]) {
-                img.put_pixel(x, y, image::Luma([v]));
-            }
-        }
-    }
+    fill_poly(img, poly, v, xa..=xb, ya..=yb);
 }
 
 /// A regular `n`-gon of radius `r` around `c`, squashed by `skew` along
