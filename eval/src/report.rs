@@ -12,6 +12,7 @@ use crate::atomic::write_atomic_in_new_dir;
 use crate::error::{EvalError, Result};
 use crate::metrics::Summary;
 use crate::plot::{line_chart, Chart, Series};
+use crate::runner;
 use crate::wild_summary::WildSummary;
 
 /// Marker systems in the paper's table order, then the fractal markers
@@ -92,21 +93,15 @@ pub struct Machine {
     pub memory: u64,
 }
 
-/// Whether a run's times are quoted: only when its detector ran as one
-/// session. Sessions side by side (the robustness sets, each on a shard of
-/// the images; every run of the gate's quick run, `reproduce --no-times`)
-/// share the machine's cores and caches and slow each other down.
-fn timed(s: &Summary) -> bool {
-    s.sessions == 1
+/// A time (ms) with `digits` decimals, or `untimed` (a dash in a table, an
+/// empty CSV field) for a run that was not timed ([`runner::timed`]).
+fn ms_or(v: Option<f64>, digits: usize, untimed: &str) -> String {
+    v.map_or_else(|| untimed.to_string(), |v| format!("{v:.digits$}"))
 }
 
-/// A run's median time per image (ms), or a dash when it was not timed.
-fn median_ms(s: &Summary) -> String {
-    if timed(s) {
-        format!("{:.2}", s.time_ms.median)
-    } else {
-        "-".to_string()
-    }
+/// A run's median time per image, ms, when it was timed.
+fn median_ms(s: &Summary) -> Option<f64> {
+    runner::timed(s.sessions).then_some(s.time_ms.median)
 }
 
 /// Table I: one row per marker system over the four sweeps.
@@ -134,28 +129,16 @@ fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String)
         }
         let markers: usize = rows.iter().map(|s| s.markers).sum();
         let found: usize = rows.iter().map(|s| s.found).sum();
-        // Only runs of one detector session are timed (see `timed`).
+        // Only the timed runs' times (`runner::timed`).
         let times: Vec<f64> = rows
             .iter()
-            .filter(|s| timed(s))
+            .filter(|s| runner::timed(s.sessions))
             .flat_map(|s| s.per_image.iter().filter_map(|p| p.ms))
             .collect();
         let t = crate::metrics::Stats::of(&times);
-        let ms = |v: f64| {
-            if t.n == 0 {
-                "-".to_string()
-            } else {
-                format!("{v:.2}")
-            }
-        };
-        // An empty CSV field where the table shows a dash.
-        let csv_ms = |v: f64| {
-            if t.n == 0 {
-                String::new()
-            } else {
-                format!("{v:.4}")
-            }
-        };
+        let timed = |v: f64| (t.n > 0).then_some(v);
+        let ms = |v: f64| ms_or(timed(v), 2, "-");
+        let csv_ms = |v: f64| ms_or(timed(v), 4, "");
         let cpu_core = rows.iter().map(|s| s.cpu_percent).sum::<f64>() / rows.len() as f64;
         let mem = rows.iter().map(|s| s.peak_memory_mib).fold(0.0, f64::max);
         let mem_pct = 100.0 * mem * (1u64 << 20) as f64 / m.memory.max(1) as f64;
@@ -430,7 +413,7 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
             s.dataset,
             display(&s.marker),
             pct(s.detection_rate),
-            median_ms(s)
+            ms_or(median_ms(s), 2, "-")
         );
         let _ = writeln!(
             csv,
@@ -440,11 +423,7 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
             s.markers,
             s.found,
             s.detection_rate,
-            if timed(s) {
-                format!("{:.4}", s.time_ms.median)
-            } else {
-                String::new()
-            }
+            ms_or(median_ms(s), 4, "")
         );
     }
 }
@@ -473,7 +452,7 @@ fn runs(summaries: &[Summary], out: &mut String) {
             s.false_positives,
             s.duplicates,
             s.corner_error_real.median,
-            median_ms(s)
+            ms_or(median_ms(s), 2, "-")
         );
     }
 }

@@ -103,6 +103,15 @@ fn one_session() -> usize {
     1
 }
 
+/// Whether a run of `sessions` detector sessions ([`RunInfo::sessions`])
+/// is timed: its per-image times are quoted only when one session ran, as
+/// sessions side by side (the robustness sets; every run of the gate's
+/// quick run, `reproduce --no-times`) share the machine's cores and caches
+/// and slow each other down.
+pub fn timed(sessions: usize) -> bool {
+    sessions == 1
+}
+
 /// Resource use of a run.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct RunResources {

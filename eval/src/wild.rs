@@ -115,9 +115,8 @@ pub struct WildRun {
     pub wrong_ids: usize,
     /// Second detections of a marker already taken.
     pub duplicates: usize,
-    /// Detection time per image, ms; empty when the run's detector
-    /// sessions ran several at once (`RunInfo::sessions`), whose times are
-    /// not comparable with one session's.
+    /// Detection time per image, ms; empty when the run was not timed
+    /// ([`crate::runner::timed`]).
     pub times_ms: Vec<f64>,
     /// One per true marker, in image and truth order.
     pub outcomes: Vec<MarkerOutcome>,
@@ -188,7 +187,7 @@ pub fn evaluate(
         if r.error.is_some() {
             w.image_errors += 1;
         }
-        if run.info.sessions == 1 {
+        if crate::runner::timed(run.info.sessions) {
             w.times_ms.extend(r.ms);
         }
         let dets = &r.detections;
