@@ -8,22 +8,6 @@ use common::{fill_poly, in_poly, Rng};
 use coppertag::{Detector, DetectorConfig};
 use image::GrayImage;
 
-fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
-    let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
-    for p in poly {
-        x0 = x0.min(p[0]);
-        y0 = y0.min(p[1]);
-        x1 = x1.max(p[0]);
-        y1 = y1.max(p[1]);
-    }
-    let (w, h) = (img.width() as f64, img.height() as f64);
-    let xa = x0.max(0.0) as u32;
-    let ya = y0.max(0.0) as u32;
-    let xb = x1.min(w - 1.0).max(0.0) as u32;
-    let yb = y1.min(h - 1.0).max(0.0) as u32;
-    fill_poly(img, poly, v, xa..=xb, ya..=yb);
-}
-
 fn disc(c: [f64; 2], r: f64) -> Vec<[f64; 2]> {
     (0..48)
         .map(|k| {
@@ -57,7 +41,7 @@ pub fn clutter(seed: u64) -> GrayImage {
         let dark = rng.range(0.0, 80.0) as u8;
         let light = rng.range(170.0, 255.0) as u8;
         match rng.next_u64() % 5 {
-            0 => fill(
+            0 => fill_poly(
                 &mut img,
                 &disc(c, rng.range(4.0, 90.0)),
                 if rng.uniform() < 0.5 { dark } else { light },
@@ -69,15 +53,15 @@ pub fn clutter(seed: u64) -> GrayImage {
                     rng.range(0.0, 6.3),
                     rng.range(0.4, 1.0),
                 );
-                fill(&mut img, &q, if rng.uniform() < 0.5 { dark } else { light });
+                fill_poly(&mut img, &q, if rng.uniform() < 0.5 { dark } else { light });
             }
             2 => {
                 // Fake tag: dark disc, light square, random cells.
                 let s = rng.range(30.0, 160.0);
                 let rot = rng.range(0.0, 6.3);
                 let skew = rng.range(0.5, 1.0);
-                fill(&mut img, &disc(c, 0.82 * s), dark);
-                fill(&mut img, &quad(c, s, rot, skew), light);
+                fill_poly(&mut img, &disc(c, 0.82 * s), dark);
+                fill_poly(&mut img, &quad(c, s, rot, skew), light);
                 let n = if rng.uniform() < 0.5 { 14 } else { 8 };
                 let step = 1.0 / (n as f64 + 2.0);
                 for i in 0..n {
@@ -90,7 +74,7 @@ pub fn clutter(seed: u64) -> GrayImage {
                                 c[0] + x * rot.cos() - y * rot.sin(),
                                 c[1] + x * rot.sin() + y * rot.cos(),
                             ];
-                            fill(&mut img, &quad(p, step * s * 1.02, rot, skew), dark);
+                            fill_poly(&mut img, &quad(p, step * s * 1.02, rot, skew), dark);
                         }
                     }
                 }
@@ -102,7 +86,7 @@ pub fn clutter(seed: u64) -> GrayImage {
                 for _ in 0..(3 + rng.next_u64() % 12) {
                     let w = rng.range(0.15, 0.6) * h;
                     let poly = vec![[x, c[1]], [x + w, c[1]], [x + w, c[1] + h], [x, c[1] + h]];
-                    fill(&mut img, &poly, dark);
+                    fill_poly(&mut img, &poly, dark);
                     if rng.uniform() < 0.5 {
                         let bar = vec![
                             [x, c[1]],
@@ -110,7 +94,7 @@ pub fn clutter(seed: u64) -> GrayImage {
                             [x + 2.0 * w, c[1] + 0.2 * h],
                             [x, c[1] + 0.2 * h],
                         ];
-                        fill(&mut img, &bar, dark);
+                        fill_poly(&mut img, &bar, dark);
                     }
                     x += w * rng.range(1.5, 3.0);
                 }
@@ -119,8 +103,8 @@ pub fn clutter(seed: u64) -> GrayImage {
                 // A frame: dark square with a light square inside.
                 let s = rng.range(20.0, 160.0);
                 let rot = rng.range(0.0, 6.3);
-                fill(&mut img, &quad(c, s * 1.25, rot, 1.0), dark);
-                fill(&mut img, &quad(c, s, rot, 1.0), light);
+                fill_poly(&mut img, &quad(c, s * 1.25, rot, 1.0), dark);
+                fill_poly(&mut img, &quad(c, s, rot, 1.0), light);
             }
         }
     }
@@ -162,9 +146,11 @@ fn no_detections_in_clutter() {
 }
 
 /// The row-by-row fill paints exactly the pixels whose centres `in_poly`
-/// accepts, so the scenes are what testing every pixel made: on discs,
-/// turned and squashed quads, and random (self-crossing) polygons with
-/// vertices on pixel centres and rows, partly off the image.
+/// accepts anywhere in the image, so the scenes are what testing every
+/// pixel made: on discs, turned and squashed quads, and random
+/// (self-crossing) polygons with vertices on pixel centres and rows,
+/// partly or wholly off the image; a polygon with no vertex, and an empty
+/// image, paint nothing.
 #[test]
 fn the_row_fill_paints_exactly_the_pixels_in_poly_accepts() {
     let mut rng = Rng::new(77);
@@ -192,7 +178,7 @@ fn the_row_fill_paints_exactly_the_pixels_in_poly_accepts() {
         };
         let (w, h) = (120u32, 90u32);
         let mut by_rows = GrayImage::new(w, h);
-        fill_poly(&mut by_rows, &poly, 255, 0..=w - 1, 0..=h - 1);
+        fill_poly(&mut by_rows, &poly, 255);
         let by_pixel = GrayImage::from_fn(w, h, |x, y| {
             image::Luma([if in_poly(&poly, [f64::from(x), f64::from(y)]) {
                 255
@@ -202,4 +188,12 @@ fn the_row_fill_paints_exactly_the_pixels_in_poly_accepts() {
         });
         assert_eq!(by_rows, by_pixel, "polygon {k}: {poly:?}");
     }
+    let blank = GrayImage::new(40, 30);
+    for poly in [vec![], disc([-50.0, 15.0], 20.0), disc([20.0, 90.0], 20.0)] {
+        let mut img = blank.clone();
+        fill_poly(&mut img, &poly, 255);
+        assert_eq!(img, blank, "{poly:?}");
+    }
+    let mut empty = GrayImage::new(0, 0);
+    fill_poly(&mut empty, &disc([0.0, 0.0], 5.0), 255);
 }

@@ -377,20 +377,29 @@ pub fn blur_around(
     out
 }
 
-/// Paints grey `v` on the pixels of `cols` x `rows` whose centres lie
-/// inside `poly`, by the same even-odd test as [`in_poly`], row by row: a
-/// row's edge crossings are computed once, by `in_poly`'s own expression,
-/// and a pixel is inside when an odd number of them lie to its right, so
-/// the pixels painted are exactly those `in_poly` accepts. Testing every
-/// pixel of the box against every edge was over a quarter of the clutter
-/// test's time (48-gon discs of up to 180 px).
-pub fn fill_poly(
-    img: &mut GrayImage,
-    poly: &[[f64; 2]],
-    v: u8,
-    cols: std::ops::RangeInclusive<u32>,
-    rows: std::ops::RangeInclusive<u32>,
-) {
+/// Paints grey `v` on the pixels of `img` whose centres lie inside `poly`
+/// (pixels), by the same even-odd test as [`in_poly`], row by row over the
+/// polygon's box: a row's edge crossings are computed once, by `in_poly`'s
+/// own expression, and a pixel is inside when an odd number of them lie
+/// to its right, so the pixels painted are exactly those `in_poly`
+/// accepts. Testing every pixel of the box against every edge was over a
+/// quarter of the clutter test's time (48-gon discs of up to 180 px).
+pub fn fill_poly(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
+    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
+    let (mut x0, mut y0) = (f64::INFINITY, f64::INFINITY);
+    let (mut x1, mut y1) = (f64::NEG_INFINITY, f64::NEG_INFINITY);
+    for p in poly {
+        x0 = x0.min(p[0]);
+        y0 = y0.min(p[1]);
+        x1 = x1.max(p[0]);
+        y1 = y1.max(p[1]);
+    }
+    // The pixel centres within both the polygon's box and the image.
+    let (x0, y0, x1, y1) = (x0.max(0.0), y0.max(0.0), x1.min(w - 1.0), y1.min(h - 1.0));
+    if !(x0 <= x1 && y0 <= y1) {
+        return;
+    }
+    let (cols, rows) = (x0 as u32..=x1 as u32, y0 as u32..=y1 as u32);
     let n = poly.len();
     let mut crossings: Vec<f64> = Vec::with_capacity(n);
     for y in rows {
@@ -710,6 +719,22 @@ pub fn crops_found(list: &str, max_err: f64) -> Vec<coppertag::Detection> {
             .fold(0.0, f64::max);
         assert!(err <= max_err, "{}: a corner {err:.2} px off", c.file);
         found.push(d.clone());
+    }
+    found
+}
+
+/// [`crops_found`] on the `count` crops of `fixtures/wild/<list>`, each
+/// of which must be read by likelihood and report a sigma for its corners
+/// (the tags whose cells no code reading reads).
+pub fn crops_read_by_likelihood(
+    list: &str,
+    max_err: f64,
+    count: usize,
+) -> Vec<coppertag::Detection> {
+    let found = crops_found(list, max_err);
+    assert_eq!(found.len(), count, "{list}");
+    for d in &found {
+        assert!(d.likelihood && d.corner_sigma.is_some(), "{list}: {d:?}");
     }
     found
 }

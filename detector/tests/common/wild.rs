@@ -39,21 +39,6 @@ pub fn camera(height: u32) -> Camera {
     }
 }
 
-/// Fills polygon `poly` (pixels) with grey `v`, pixel centres inside.
-fn fill(img: &mut GrayImage, poly: &[[f64; 2]], v: u8) {
-    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
-    let (mut x0, mut y0, mut x1, mut y1) = (w, h, 0.0f64, 0.0f64);
-    for p in poly {
-        x0 = x0.min(p[0]);
-        y0 = y0.min(p[1]);
-        x1 = x1.max(p[0]);
-        y1 = y1.max(p[1]);
-    }
-    let (xa, ya) = (x0.max(0.0) as u32, y0.max(0.0) as u32);
-    let (xb, yb) = (x1.min(w - 1.0) as u32, y1.min(h - 1.0) as u32);
-    fill_poly(img, poly, v, xa..=xb, ya..=yb);
-}
-
 /// A regular `n`-gon of radius `r` around `c`, squashed by `skew` along
 /// its turned y axis.
 fn polygon(c: [f64; 2], r: f64, n: usize, turn: f64, skew: f64) -> Vec<[f64; 2]> {
@@ -88,15 +73,15 @@ fn background(rng: &mut Rng, w: u32, h: u32) -> GrayImage {
         let grey = if rng.uniform() < 0.5 { dark } else { light };
         let (turn, skew) = (rng.range(0.0, 6.3), rng.range(0.3, 1.0));
         match rng.next_u64() % 4 {
-            0 => fill(&mut img, &polygon(c, r, 48, turn, skew), grey),
-            1 => fill(&mut img, &polygon(c, r, 4, turn, skew), grey),
+            0 => fill_poly(&mut img, &polygon(c, r, 48, turn, skew), grey),
+            1 => fill_poly(&mut img, &polygon(c, r, 4, turn, skew), grey),
             2 => {
-                fill(&mut img, &polygon(c, r, 48, turn, skew), dark);
-                fill(&mut img, &polygon(c, 0.6 * r, 48, turn, skew), light);
+                fill_poly(&mut img, &polygon(c, r, 48, turn, skew), dark);
+                fill_poly(&mut img, &polygon(c, 0.6 * r, 48, turn, skew), light);
             }
             _ => {
                 let t = rng.range(1.5, 6.0) * scale;
-                fill(&mut img, &polygon(c, r, 4, turn, t / r), grey);
+                fill_poly(&mut img, &polygon(c, r, 4, turn, t / r), grey);
             }
         }
     }
