@@ -178,8 +178,7 @@ pub fn baseline_of(
                         duplicates: s.duplicates,
                         corner_median_px: s.corner_error_real.median,
                         corner_p95_px: s.corner_error_real.p95,
-                        time_median_ms: crate::runner::timed(s.sessions)
-                            .then_some(s.time_ms.median),
+                        time_median_ms: s.median_ms(),
                     },
                 )
             })

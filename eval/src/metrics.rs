@@ -169,6 +169,15 @@ fn one_session() -> usize {
     1
 }
 
+impl Summary {
+    /// The run's median time per image (ms), when it was timed
+    /// ([`crate::runner::timed`]): what the reports quote and the gate's
+    /// baseline records.
+    pub fn median_ms(&self) -> Option<f64> {
+        crate::runner::timed(self.sessions).then_some(self.time_ms.median)
+    }
+}
+
 /// Distance between two points (px).
 pub(crate) fn dist(a: [f64; 2], b: [f64; 2]) -> f64 {
     (a[0] - b[0]).hypot(a[1] - b[1])

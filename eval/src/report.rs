@@ -99,11 +99,6 @@ fn ms_or(v: Option<f64>, digits: usize, untimed: &str) -> String {
     v.map_or_else(|| untimed.to_string(), |v| format!("{v:.digits$}"))
 }
 
-/// A run's median time per image, ms, when it was timed.
-fn median_ms(s: &Summary) -> Option<f64> {
-    runner::timed(s.sessions).then_some(s.time_ms.median)
-}
-
 /// Table I: one row per marker system over the four sweeps.
 fn table1(summaries: &[Summary], m: Machine, out: &mut String, csv: &mut String) {
     let _ = writeln!(
@@ -413,7 +408,7 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
             s.dataset,
             display(&s.marker),
             pct(s.detection_rate),
-            ms_or(median_ms(s), 2, "-")
+            ms_or(s.median_ms(), 2, "-")
         );
         let _ = writeln!(
             csv,
@@ -423,7 +418,7 @@ fn challenge(summaries: &[Summary], out: &mut String, csv: &mut String) {
             s.markers,
             s.found,
             s.detection_rate,
-            ms_or(median_ms(s), 4, "")
+            ms_or(s.median_ms(), 4, "")
         );
     }
 }
@@ -452,7 +447,7 @@ fn runs(summaries: &[Summary], out: &mut String) {
             s.false_positives,
             s.duplicates,
             s.corner_error_real.median,
-            ms_or(median_ms(s), 2, "-")
+            ms_or(s.median_ms(), 2, "-")
         );
     }
 }
