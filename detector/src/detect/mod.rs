@@ -644,9 +644,14 @@ fn small_region(
         };
     }
     ws.guessed = guessed;
-    let mut last_resort = first.last_resort;
+    let (mut last_resort, mut unread) = (first.last_resort, first.unread);
     last_resort.append(&mut out.last_resort);
-    decoding::Decoded { last_resort, ..out }
+    unread.append(&mut out.unread);
+    decoding::Decoded {
+        last_resort,
+        unread,
+        ..out
+    }
 }
 
 /// The upsampled look of [`small_region`] after a full-resolution look
@@ -922,6 +927,7 @@ impl Detector {
             mut foreign,
             mut attempts,
             mut last_resort,
+            mut unread,
         } = match workers {
             None => {
                 decoding::decode_candidates(&img, cands, scale, &self.targets, dp, &mut ws.rscratch)
@@ -969,6 +975,7 @@ impl Detector {
                         found.extend(more.found);
                         foreign.extend(more.foreign);
                         last_resort.extend(more.last_resort);
+                        unread.extend(more.unread);
                     }
                 }
                 Some(w) => {
@@ -1004,6 +1011,7 @@ impl Detector {
                         found.extend(more.found);
                         foreign.extend(more.foreign);
                         last_resort.extend(more.last_resort);
+                        unread.extend(more.unread);
                     }
                 }
             }
@@ -1097,6 +1105,13 @@ impl Detector {
         // Last, the readings that stand only where no look found a tag.
         if !last_resort.is_empty() {
             let more = decoding::last_resorts(&img, last_resort, &out, &self.targets, dp);
+            out.extend(more);
+            st.times.verify += laps.lap();
+        }
+        if !unread.is_empty() {
+            let aligned =
+                decoding::aligned_unread(&img, &unread, &out, &foreign, &self.targets, dp);
+            let more = decoding::last_resorts(&img, aligned, &out, &self.targets, dp);
             out.extend(more);
             st.times.verify += laps.lap();
         }

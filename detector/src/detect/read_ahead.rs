@@ -356,7 +356,10 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
                     let o = shared.outcome_of(j, left, &wanted, &read);
                     attempts += usize::from(matches!(
                         o,
-                        Outcome::Read(_) | Outcome::LastResort(_) | Outcome::ReadKeeping(..)
+                        Outcome::Read(_)
+                            | Outcome::LastResort(_)
+                            | Outcome::ReadKeeping(..)
+                            | Outcome::Unread(_)
                     ));
                     o
                 },
