@@ -1001,29 +1001,38 @@ fn unless_faint(
 }
 
 /// The print's fixed look aligned to `img` from the quad `q` (TL, BL, BR,
-/// TR, px), where it correlates ([`print_align::MIN_CORRELATION`]): the
-/// aligned data square's corners, in the print's own order. The quad, as
-/// the affine map of the tag's plane it would be without perspective (tag
-/// units, the data square's corners at +-0.5), is the alignment's
-/// starting point; the alignment resolves the turn itself.
+/// TR, px) by [`print_align::align`], where it correlates: see
+/// [`print_aligned_by`].
 fn print_aligned_from(img: &GrayView<'_>, q: &[[f64; 2]; 4]) -> Option<[[f64; 2]; 4]> {
-    let (m, c) = affine_of(q);
-    print_align::align(img, m, c)
-        .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
-        .map(|a| a.corners)
+    print_aligned_by(img, q, print_align::align)
 }
 
-/// The affine map of the tag's plane (tag units, the data square's
-/// corners at +-0.5) that the quad `q` (TL, BL, BR, TR, px) would be
-/// without perspective: its matrix and its centre, the centroid.
-fn affine_of(q: &[[f64; 2]; 4]) -> ([[f64; 2]; 2], [f64; 2]) {
+/// An alignment of the print from an affine prediction (matrix, centre),
+/// as [`print_align::align`].
+type PrintAligner = fn(&GrayView<'_>, [[f64; 2]; 2], [f64; 2]) -> Option<print_align::Aligned>;
+
+/// The print's fixed look aligned to `img` from the quad `q` (TL, BL, BR,
+/// TR, px) by `align` ([`print_align::align`] or
+/// [`print_align::align_quickly`]), where it correlates
+/// ([`print_align::MIN_CORRELATION`]): the aligned data square's corners,
+/// in the print's own order. The quad, as the affine map of the tag's
+/// plane it would be without perspective (tag units, the data square's
+/// corners at +-0.5), is the alignment's starting point; the alignment
+/// resolves the turn itself.
+fn print_aligned_by(
+    img: &GrayView<'_>,
+    q: &[[f64; 2]; 4],
+    align: PrintAligner,
+) -> Option<[[f64; 2]; 4]> {
     let half = |a: usize, b: usize, k: usize| (q[a][k] + q[b][k]) / 2.0;
     // TL, BL, BR, TR at (-0.5,-0.5), (-0.5,0.5), (0.5,0.5), (0.5,-0.5).
     let m = [
         [half(2, 3, 0) - half(0, 1, 0), half(1, 2, 0) - half(0, 3, 0)],
         [half(2, 3, 1) - half(0, 1, 1), half(1, 2, 1) - half(0, 3, 1)],
     ];
-    (m, centroid(q))
+    align(img, m, centroid(q))
+        .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
+        .map(|a| a.corners)
 }
 
 /// Farthest (px) a hidden corner of a reading under glare may lie from
@@ -1885,11 +1894,7 @@ pub(crate) fn aligned_unread(
         {
             continue;
         }
-        let (m, c) = affine_of(&u.quad);
-        let Some(a) = print_align::align_quickly(img, m, c)
-            .filter(|a| a.correlation >= print_align::MIN_CORRELATION)
-            .map(|a| a.corners)
-        else {
+        let Some(a) = print_aligned_by(img, &u.quad, print_align::align_quickly) else {
             continue;
         };
         let how = ReadAs {
