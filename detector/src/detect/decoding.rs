@@ -1839,6 +1839,46 @@ const UNREAD_MAX_CELL_PX: f64 = 1.9;
 /// most 12, and 4 of them more than 8.
 const UNREAD_MAX_ALIGNED: usize = 8;
 
+/// Most quads [`aligned_unread`] aligns the print to around one spot: a
+/// quad whose centre lies in this many quads aligned before (and read to
+/// nothing) is passed over.
+///
+/// Why: a tag too blurred or small to read leaves several quads that read
+/// nothing, its data square found again with other corners (on the
+/// benchmark's cluttered 1080p frames, one such tag had eight, aligned
+/// one after the other at 0.6-0.8 ms each, 5 ms of the frame). Why two,
+/// not one: on the wild set (3000 frames) one alignment per spot lost 2
+/// of the markers found this way (the second quad's alignment read where
+/// the first's did not), two lost none and cut the alignments from 1147
+/// to 897 (on the benchmark's 1080p frames from 16 to 6; decoding ct14
+/// only, from 25 to 10).
+const UNREAD_TRIES_PER_SPOT: usize = 2;
+
+/// The quads [`aligned_unread`] has aligned the print to in a frame, for
+/// its bounds: [`UNREAD_MAX_ALIGNED`] in all, [`UNREAD_TRIES_PER_SPOT`]
+/// around one spot.
+#[derive(Debug, Default)]
+struct AlignBudget<'u> {
+    aligned: Vec<&'u Quad>,
+}
+
+impl<'u> AlignBudget<'u> {
+    /// Whether the frame's alignments are all made.
+    fn spent(&self) -> bool {
+        self.aligned.len() >= UNREAD_MAX_ALIGNED
+    }
+
+    /// Whether `u` may be aligned, counted as aligned if so.
+    fn admits(&mut self, u: &'u Unread) -> bool {
+        let here = self.aligned.iter().filter(|q| inside(q, u.centre)).count();
+        let ok = !self.spent() && here < UNREAD_TRIES_PER_SPOT;
+        if ok {
+            self.aligned.push(&u.quad);
+        }
+        ok
+    }
+}
+
 /// Whether quad `q` is small enough for [`aligned_unread`]
 /// ([`UNREAD_MAX_CELL_PX`]).
 fn small_enough_to_align(q: &Quad, targets: &[Target]) -> bool {
@@ -1852,8 +1892,9 @@ fn small_enough_to_align(q: &Quad, targets: &[Target]) -> bool {
 /// The readings of the print aligned ([`print_align::align_quickly`]) to
 /// the quads `unread` (see [`Decoded::unread`]) that lie in no tag `out`
 /// reports and in no square of a family not decoded (`foreign`), best
-/// look first, at most [`UNREAD_MAX_ALIGNED`] of them, and none inside a
-/// tag read here already: each read as the rim look reads its aligned
+/// look first, at most [`UNREAD_MAX_ALIGNED`] of them, none inside a
+/// tag read here already and none centred in [`UNREAD_TRIES_PER_SPOT`]
+/// quads aligned before: each read as the rim look reads its aligned
 /// print, fitted with every corner given a sigma and reported on the
 /// aligned corners where the fit agrees ([`on_aligned_print`]), for
 /// [`last_resorts`] to judge as it judges every placed reading.
@@ -1887,10 +1928,15 @@ pub(crate) fn aligned_unread(
     // Stable: equal looks keep the decoding order.
     left.sort_by(|a, b| b.look.total_cmp(&a.look));
     let mut read_here: Vec<Found> = Vec::new();
-    for u in left.into_iter().take(UNREAD_MAX_ALIGNED) {
+    let mut budget = AlignBudget::default();
+    for u in left {
+        if budget.spent() {
+            break;
+        }
         if read_here
             .iter()
             .any(|f| inside(&f.reading.det.corners, u.centre))
+            || !budget.admits(u)
         {
             continue;
         }
@@ -2253,6 +2299,42 @@ mod tests {
             decode: DecodeParams::default(),
             fits: None,
         }
+    }
+
+    /// At most two quads are aligned around one spot and eight in all,
+    /// whatever their order: a blurred tag's data square found again and
+    /// again is aligned twice, and the other spots still get theirs.
+    #[test]
+    fn unread_quads_are_aligned_twice_a_spot_and_eight_a_frame() {
+        let at = |x: f64, y: f64, d: f64| Unread {
+            quad: [
+                [x - 10.0 + d, y - 10.0],
+                [x - 10.0, y + 10.0 - d],
+                [x + 10.0, y + 10.0],
+                [x + 10.0, y - 10.0 + d],
+            ],
+            estimated: [false; 4],
+            centre: [x, y],
+            look: 0.9,
+        };
+        // Five quads of one square, corners a pixel or two apart, then
+        // one at each of eight other spots.
+        let mut quads: Vec<Unread> = (0..5).map(|k| at(50.0, 50.0, k as f64 * 0.5)).collect();
+        quads.extend((1..=8).map(|k| at(50.0 + 40.0 * k as f64, 50.0, 0.0)));
+        let mut budget = AlignBudget::default();
+        let admitted: Vec<bool> = quads.iter().map(|u| budget.admits(u)).collect();
+        assert_eq!(admitted[..5], [true, true, false, false, false]);
+        // Two at the first spot leave six of the eight for the others.
+        assert_eq!(
+            admitted[5..],
+            [true, true, true, true, true, true, false, false]
+        );
+        assert!(budget.spent());
+        // A quad centred beside (not inside) the two aligned ones is
+        // another spot.
+        let mut budget = AlignBudget::default();
+        assert!(budget.admits(&quads[0]) && budget.admits(&quads[1]));
+        assert!(budget.admits(&at(75.0, 50.0, 0.0)));
     }
 
     /// The aligned print's corners are matched to a reading's under the
