@@ -474,14 +474,10 @@ pub(crate) fn decode_quad_by(
     params: &DecodeParams,
     accept: Accept,
 ) -> Option<QuadReading> {
-    let h = Homography::from_points(&CORNERS, corners)?;
     let n = family.grid();
     // The cheap refusals first (a grid leaving the image, no contrast
     // between margin and frame), then the cells.
-    if !grid_corners_inside(img, n, &h) {
-        return None;
-    }
-    let plain = ring_levels(img, n, &h)?;
+    let (h, plain) = grid_and_levels(img, n, corners)?;
     // The cells are sampled once, for the plain levels and the clear ones.
     let mut cells = None;
     if plain.0 - plain.1 >= params.min_contrast {
@@ -519,6 +515,67 @@ pub(crate) fn decode_quad_by(
         return None;
     }
     read_glare_nearest(family, Levelled::new(&cells?, plain), corners)
+}
+
+/// The homography of an `n`-cell grid's data square at `corners` and its
+/// rings' plain levels ([`ring_levels`]), unless the grid leaves the
+/// image: what every reading of a quad starts with.
+fn grid_and_levels(
+    img: &GrayView<'_>,
+    n: usize,
+    corners: &[[f64; 2]; 4],
+) -> Option<(Homography, (f64, f64))> {
+    let h = Homography::from_points(&CORNERS, corners)?;
+    if !grid_corners_inside(img, n, &h) {
+        return None;
+    }
+    Some((h, ring_levels(img, n, &h)?))
+}
+
+/// The reading of a tag of `family` at `corners` by the Reed-Solomon code
+/// alone, at the rings' plain levels, within `limit` corrections: as
+/// [`decode_quad_by`] reads first, without the readings by the codebook
+/// (likelihood, nearest codeword, shaded) or under glare, and without
+/// their cost (the likelihood reading alone costs a score of every
+/// codeword).
+///
+/// Why: for a detector that does not decode `family`, a plain reading is
+/// enough to tell a quad of that family's tag, which it then skips, and
+/// such a reading of a quad that is no tag of it is rare (on the wild
+/// set, whose tags are all ct14, a ct14-only detector that asks it of
+/// every quad that reads nothing found the same tags).
+pub(crate) fn read_by_code(
+    img: &GrayView<'_>,
+    family: &Family,
+    corners: &[[f64; 2]; 4],
+    params: &DecodeParams,
+    limit: usize,
+) -> Option<QuadReading> {
+    let n = family.grid();
+    let (h, plain) = grid_and_levels(img, n, corners)?;
+    if plain.0 - plain.1 < params.min_contrast {
+        return None;
+    }
+    let accept = Accept {
+        nearest: false,
+        limit: Some(limit),
+        smeared: false,
+        promising: Promising::Align,
+        glared: false,
+    };
+    let cells = sample_cells(img, n, &h)?;
+    decode_at_levels(
+        img,
+        family,
+        corners,
+        params,
+        accept,
+        Levelled::new(&cells, plain),
+        false,
+    )
+    // With no codebook reading asked for, the one other reading left is
+    // the one under glare past the limit (`occluded`).
+    .filter(|r| !r.likelihood && !r.occluded)
 }
 
 /// The nearest codeword ([`read_nearest`]) of the cells `at` of a tag

@@ -63,6 +63,10 @@ pub(crate) struct DecodingParams<'f> {
     pub decode: DecodeParams,
     /// The model fits made so far in the frame ([`Fits`]), if kept.
     pub fits: Option<&'f Fits>,
+    /// The built-in families not decoded, set for each frame: a quad
+    /// that reads to nothing and reads plainly as one of them is that
+    /// family's data square ([`reads_as_other_family`]).
+    pub others: &'f [Target],
 }
 
 /// The model fits ([`verify`]) made in one frame, each with what it was
@@ -226,7 +230,8 @@ pub(crate) struct Decoded {
     /// The data squares of tags of a built-in family that is not decoded
     /// (the cells' pitch shows that family's grid and no target's, see
     /// [`shown_grid`]), not inside a tag found: quads with four seen
-    /// corners, and prints the rim look aligned. The candidates inside
+    /// corners, and prints the rim look aligned; or quads that read by
+    /// the code as such a family ([`reads_as_other_family`]). The candidates inside
     /// one are that tag's other quads (its outline, pieces of it), and a
     /// later look at its rim or around it could only find the same square
     /// again; skipping them took a third of the time of a ct14-only
@@ -352,7 +357,43 @@ fn attempt(
             Outcome::Read(None)
         };
     }
-    quad_reading(img, cand, &q, shown, look.own, centre, targets, p)
+    match quad_reading(img, cand, &q, shown, look.own, centre, targets, p) {
+        Outcome::Read(None) | Outcome::Unread(_) if reads_as_other_family(img, &q, p) => {
+            Outcome::Foreign(Box::new(q))
+        }
+        o => o,
+    }
+}
+
+/// Whether quad `q` reads by the code alone
+/// ([`crate::decode::read_by_code`]) as a built-in family the detector
+/// does not decode (`p.others`), within the limit a detector of that
+/// family accepts: then it is that family's data square
+/// ([`Decoded::foreign`]), and the tag's other quads, its rim and a
+/// small-tag look around it are passed over. Asked of refined quads that
+/// read to nothing and of the rim look's aligned prints that show no
+/// grid.
+///
+/// Why: a small tag of the other family (a data square of 20-30 px)
+/// shows no pitch [`shown_grid`] can rule out, so every quad of it was
+/// read through every reading there is, its rim and small-tag region
+/// looked at, and its print aligned to its quads. On the benchmark's
+/// cluttered 1080p frames a ct14-only detector spent a quarter of its
+/// decoding time on the ct8 tags (8 of 21 ms on the worst frame). With
+/// the limit less a margin of [`UNFIT_MARGIN`], the worst frame's time
+/// fell less (22 against 19.6 ms), and the detections were the same
+/// either way. The readings of the code alone cost little (a codebook
+/// reading would score every codeword), and a tag of the family decoded
+/// does not pass for one of the other: its cells would have to make a
+/// codeword of the other family with its check symbol. On the wild set,
+/// whose 6001 tags are all ct14, a ct14-only detector found the same tags
+/// at the same corners and took about 2% more time (1500 frames, three
+/// interleaved runs: 9.23 s against 9.40-9.49 s in all); gating the
+/// reading by the quad's look of the print changed nothing measurable.
+fn reads_as_other_family(img: &GrayView<'_>, q: &Quad, p: &DecodingParams) -> bool {
+    p.others.iter().any(|t| {
+        crate::decode::read_by_code(img, &t.family, q, &p.decode, t.max_corrected).is_some()
+    })
 }
 
 /// The reading of candidate `cand`'s refined quad `q`, which shows the grid
@@ -587,7 +628,7 @@ fn rim_attempt(
     // One that shows no grid clearly may still read as a tag of a
     // built-in family not looked for: a small one of the other family.
     if let Some((q, None)) = aligned {
-        if reads_as_foreign(img, &q, targets, &p.decode) {
+        if reads_as_other_family(img, &q, p) {
             return Outcome::Foreign(Box::new(q));
         }
     }
@@ -647,44 +688,6 @@ fn rim_attempt(
         (Some(r), Some(det)) => Outcome::ReadKeeping(Box::new(r), aside(det)),
         (reading, None) => Outcome::Read(reading.map(Box::new)),
     }
-}
-
-/// Whether the square `q` reads as a tag of a built-in family none of
-/// `targets` is, by the code alone (a reading that neither leans on
-/// erasures nor on the nearest codeword) within the family's default
-/// limit. Only families without a codebook are tried (ct8): their
-/// readings are the code's alone, a few tens of microseconds.
-///
-/// Why: the rim look of a tag of the other family whose square is too
-/// small or too blurred to show its grid (`shown_grid`) goes through
-/// every reading and every move of the aligned print in vain. On the wild
-/// benchmark's 1080p frames read for ct14 alone, such ct8 tags of 26-28 px
-/// cost about 2 ms each, and the frames' p95 went from 19.2 to 16.0 ms
-/// (8 rounds, interleaved) with no detection changed. A ct14 tag cannot
-/// pass for a ct8 one: its cells would have to make a ct8 codeword with
-/// the right verify symbol.
-fn reads_as_foreign(
-    img: &GrayView<'_>,
-    q: &[[f64; 2]; 4],
-    targets: &[Target],
-    params: &DecodeParams,
-) -> bool {
-    Family::builtin()
-        .iter()
-        .filter(|f| f.codebook().is_none())
-        .filter(|f| targets.iter().all(|t| t.family.name() != f.name()))
-        .filter_map(|f| FamilySetting::builtin(f.name()).ok())
-        .any(|s| {
-            let accept = Accept {
-                nearest: false,
-                limit: Some(s.correction_limit()),
-                smeared: false,
-                promising: Promising::Smear,
-                glared: false,
-            };
-            decode_quad_by(img, &s.family, q, params, accept)
-                .is_some_and(|r| !r.likelihood && !r.occluded)
-        })
 }
 
 /// Whether the grid a square shows (`shown`, [`shown_grid`]) rules out
@@ -2298,6 +2301,7 @@ mod tests {
             },
             decode: DecodeParams::default(),
             fits: None,
+            others: &[],
         }
     }
 
@@ -2413,40 +2417,47 @@ mod tests {
         }
     }
 
+    /// A tag of a built-in family the detector does not decode reads as
+    /// that family's, for a detector of either family alone; a tag of a
+    /// family decoded, a blank square and degenerate quads do not.
     #[test]
     fn a_square_of_a_family_not_looked_for_reads_as_foreign() {
         let (ct8, ct14) = (Family::ct8(), Family::ct14());
-        let d = DecodeParams::default();
+        // The families not decoded by a ct14-only detector, a ct8-only
+        // one, and one of both.
+        let (not8, not14, none) = ([target(ct8)], [target(ct14)], []);
+        let undecoded = |others| DecodingParams { others, ..params() };
+        let (only14, only8, both) = (undecoded(&not8), undecoded(&not14), undecoded(&none));
         for (k, side) in [26.0, 40.0, 90.0].into_iter().enumerate() {
             let turn = 0.3 * k as f64;
             let (img, q) =
                 crate::test_images::family_tag_image(ct8, 4321, side, [160.0, 160.0], turn);
             let img = GrayView::from(&img);
-            assert!(reads_as_foreign(&img, &q, &[target(ct14)], &d), "{side}");
-            // Looked for, or with its family among the targets, it is not.
-            assert!(!reads_as_foreign(&img, &q, &[target(ct8)], &d), "{side}");
-            assert!(!reads_as_foreign(
-                &img,
-                &q,
-                &[target(ct14), target(ct8)],
-                &d
-            ));
-            // A ct14 tag is no ct8 one.
+            assert!(reads_as_other_family(&img, &q, &only14), "{side}");
+            // With its family decoded, it is not.
+            assert!(!reads_as_other_family(&img, &q, &only8), "{side}");
+            assert!(!reads_as_other_family(&img, &q, &both), "{side}");
+            // A ct14 tag is no ct8 one, and the other way round.
             let (img, q) =
                 crate::test_images::family_tag_image(ct14, 77, side, [160.0, 160.0], turn);
             let img = GrayView::from(&img);
-            assert!(!reads_as_foreign(&img, &q, &[target(ct14)], &d), "{side}");
+            assert!(!reads_as_other_family(&img, &q, &only14), "{side}");
+            assert!(reads_as_other_family(&img, &q, &only8), "{side}");
         }
         // Nor is a blank square, a square partly off the image, or three
-        // corners on a line.
+        // corners on a line, as either family.
         let img = image::GrayImage::from_pixel(320, 320, image::Luma([128]));
         let img = GrayView::from(&img);
+        let neither = [target(ct8), target(ct14)];
         for q in [
             square([160.0, 160.0], 40.0),
             square([5.0, 5.0], 40.0),
             [[10.0, 10.0], [20.0, 20.0], [30.0, 30.0], [40.0, 10.0]],
         ] {
-            assert!(!reads_as_foreign(&img, &q, &[target(ct14)], &d), "{q:?}");
+            assert!(
+                !reads_as_other_family(&img, &q, &undecoded(&neither)),
+                "{q:?}"
+            );
         }
     }
 

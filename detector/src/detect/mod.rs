@@ -320,6 +320,7 @@ impl StageParams {
                 },
                 decode: DecodeParams::default(),
                 fits: None,
+                others: &[],
             },
         }
     }
@@ -795,6 +796,10 @@ pub struct Detector {
     /// `params` at full resolution, for the small-tag regions.
     full_params: StageParams,
     targets: Vec<decoding::Target>,
+    /// The built-in families not in `targets`, at their default limits:
+    /// their tags are recognised, not decoded
+    /// (`decoding::DecodingParams::others`).
+    others: Vec<decoding::Target>,
     ws: Workspace,
     /// The worker threads and their buffers, when
     /// [`DetectorConfig::threads`] asks for more than one.
@@ -821,6 +826,12 @@ impl Detector {
         for t in &targets {
             t.family.codebook();
         }
+        let others = crate::family::Family::builtin()
+            .iter()
+            .filter(|f| !targets.iter().any(|t| t.family == **f))
+            .filter_map(|f| FamilySetting::builtin(f.name()).ok())
+            .map(|s| decoding::Target::of(&s))
+            .collect();
         let full = DetectorConfig {
             downsample: 1,
             ..config.clone()
@@ -844,6 +855,7 @@ impl Detector {
             full_params,
             config,
             targets,
+            others,
             ws: Workspace::default(),
             stats: DetectionStats::default(),
         })
@@ -898,6 +910,7 @@ impl Detector {
         let fits = decoding::Fits::default();
         let dp = &decoding::DecodingParams {
             fits: Some(&fits),
+            others: &self.others,
             ..p.decoding
         };
         let mut st = DetectionStats {
