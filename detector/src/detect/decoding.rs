@@ -613,12 +613,6 @@ fn rim_attempt(
             on(&m, Some(q), false, shown, Promising::Smear)
         })
     };
-    // The moves only where a third of a pixel matters: cells of at most
-    // JITTER_MAX_CELL_PX in the family with the most.
-    let most_cells = targets
-        .iter()
-        .map(|t| (t.family.grid() + MARGIN_CELLS) as f64)
-        .fold(0.0, f64::max);
     let aligned = seen.aligned(img).map(|q| (q, shown_grid(img, &q)));
     // A print aligned as another family's tag is not refined and read
     // again: the refined quad is the same square.
@@ -647,7 +641,9 @@ fn rim_attempt(
     let reading = aligned
         .and_then(|(q, shown)| {
             on(&q, Some(&q), true, shown, Promising::Align).or_else(|| {
-                (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells)
+                // The moves only where a third of a pixel matters: cells
+                // of at most JITTER_MAX_CELL_PX in the family with the most.
+                (mean_side(&q) <= JITTER_MAX_CELL_PX * most_cells(targets))
                     .then(|| jittered(&q, shown))
                     .flatten()
             })
@@ -1885,11 +1881,17 @@ impl<'u> AlignBudget<'u> {
 /// Whether quad `q` is small enough for [`aligned_unread`]
 /// ([`UNREAD_MAX_CELL_PX`]).
 fn small_enough_to_align(q: &Quad, targets: &[Target]) -> bool {
-    let most_cells = targets
+    mean_side(q) <= UNREAD_MAX_CELL_PX * most_cells(targets)
+}
+
+/// Cells across a data square with its margin ([`MARGIN_CELLS`]) in the
+/// target family of most cells: a side over it is the largest cell any
+/// target would read there.
+fn most_cells(targets: &[Target]) -> f64 {
+    targets
         .iter()
         .map(|t| (t.family.grid() + MARGIN_CELLS) as f64)
-        .fold(0.0, f64::max);
-    mean_side(q) <= UNREAD_MAX_CELL_PX * most_cells
+        .fold(0.0, f64::max)
 }
 
 /// The readings of the print aligned ([`print_align::align_quickly`]) to
