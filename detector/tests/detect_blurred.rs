@@ -69,18 +69,7 @@ fn blurred_small_tags_are_read_by_likelihood_with_right_corners() {
 /// was found before).
 #[test]
 fn wild_likelihood_readings_stand_on_their_own_corners() {
-    fitted_likelihood_crops("likelihood-crops.csv", 4, 1.6);
-}
-
-/// Each of the `count` crops of `list` found (`crops_found`, every corner
-/// within `max_err` px) by a likelihood reading the model fit confirmed.
-fn fitted_likelihood_crops(list: &str, count: usize, max_err: f64) {
-    let found = crops_found(list, max_err);
-    assert_eq!(found.len(), count);
-    for d in &found {
-        assert!(d.likelihood, "not a likelihood reading: {d:?}");
-        assert!(d.corner_sigma.is_some(), "not fitted: {d:?}");
-    }
+    crops_read_by_likelihood("likelihood-crops.csv", 1.6, 4);
 }
 
 /// Blur does not make a tag look larger. The side of a data square is
@@ -141,7 +130,7 @@ fn blurred_tags_are_not_measured_too_large() {
 /// with the model fit's sigma.
 #[test]
 fn faint_readings_stand_on_the_aligned_print() {
-    fitted_likelihood_crops("faint-crops.csv", 6, 0.6);
+    crops_read_by_likelihood("faint-crops.csv", 0.6, 6);
 }
 
 /// Seven tags of the wild set (26-43 px), five smeared by motion (4.3-5.5
@@ -156,11 +145,7 @@ fn faint_readings_stand_on_the_aligned_print() {
 /// within 0.6 px (0.58 px at most, measured), with a fitted sigma.
 #[test]
 fn smeared_tags_are_read_where_alignment_does_not_help() {
-    let found = crops_found("smear-confirm-crops.csv", 0.6);
-    assert_eq!(found.len(), 7);
-    for d in &found {
-        assert!(d.corner_sigma.is_some(), "not fitted: {d:?}");
-    }
+    crops_fitted("smear-confirm-crops.csv", 0.6, 7);
 }
 
 /// `decode_quad` reads a grid on the corners it is given as the verify

@@ -724,17 +724,26 @@ pub fn crops_found(list: &str, max_err: f64) -> Vec<coppertag::Detection> {
 }
 
 /// [`crops_found`] on the `count` crops of `fixtures/wild/<list>`, each
-/// of which must be read by likelihood and report a sigma for its corners
-/// (the tags whose cells no code reading reads).
+/// of which must report a sigma for its corners (the tag's model fitted).
+pub fn crops_fitted(list: &str, max_err: f64, count: usize) -> Vec<coppertag::Detection> {
+    let found = crops_found(list, max_err);
+    assert_eq!(found.len(), count, "{list}");
+    for d in &found {
+        assert!(d.corner_sigma.is_some(), "{list}: not fitted: {d:?}");
+    }
+    found
+}
+
+/// [`crops_fitted`], each crop read by likelihood besides (the tags whose
+/// cells no code reading reads).
 pub fn crops_read_by_likelihood(
     list: &str,
     max_err: f64,
     count: usize,
 ) -> Vec<coppertag::Detection> {
-    let found = crops_found(list, max_err);
-    assert_eq!(found.len(), count, "{list}");
+    let found = crops_fitted(list, max_err, count);
     for d in &found {
-        assert!(d.likelihood && d.corner_sigma.is_some(), "{list}: {d:?}");
+        assert!(d.likelihood, "{list}: not a likelihood reading: {d:?}");
     }
     found
 }
