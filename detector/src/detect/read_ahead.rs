@@ -11,10 +11,10 @@
 //! whom and when.
 //!
 //! Each thread takes the next candidate that the tags found so far would
-//! not skip and that lies in no square being read (see [`Ahead::take`]),
-//! as long as fewer than [`AHEAD_PER_THREAD`] per thread are taken or read
-//! from the one the loop is at on (and no more than the attempts left),
-//! reads it and leaves the outcome for the loop. The loop takes the
+//! not skip, preferring one that lies in no square being read (see
+//! [`Ahead::take`]), as long as fewer than [`AHEAD_PER_THREAD`] per thread
+//! are taken or read from the one the loop is at on (and no more than the
+//! attempts left), reads it and leaves the outcome for the loop. The loop takes the
 //! outcome of each candidate it decodes: ready, or read by itself if no
 //! thread took it; while another thread is reading it, the
 //! loop reads ahead too rather than wait. There is no barrier: a thread
@@ -38,14 +38,17 @@ use crate::math::{inside, to_full};
 use crate::view::GrayView;
 
 /// Most candidates taken or read ahead of the loop per worker thread:
-/// enough that a thread finds work while the others read slow
-/// candidates, few enough that little is read in vain when a tag found
-/// makes the loop skip candidates read ahead. The window starts at one
-/// per thread and doubles each time the loop takes an outcome read ahead
-/// with none in vain before it, back to one per thread after one in vain
-/// (candidates over a tag found come in runs): the last readings of a
-/// frame, waited for even when in vain, are then few.
-const AHEAD_PER_THREAD: usize = 4;
+/// enough that a thread finds work while the loop reads a slow candidate
+/// (a tag's hard quads take milliseconds each), few enough that little is
+/// read in vain when a tag found makes the loop skip candidates read
+/// ahead. Measured on the wild benchmark with 2 threads (pinned): with a
+/// window of one to four per thread that grew while nothing was read in
+/// vain, the second thread waited 1.9-2.1 ms of a 4K frame's 5.6-5.9 ms
+/// of decoding, most of it at the limit; at eight per thread it waits
+/// 0.5 ms, and on the 1080p frames 0.2 of 1.9 readings a frame are in
+/// vain (decoding 2.7-3.0 -> 2.4-2.6 ms a frame there, both figures with
+/// [`Ahead::take`]'s fallback).
+const AHEAD_PER_THREAD: usize = 8;
 
 /// A candidate's reading ahead.
 #[derive(Debug, Default)]
@@ -69,10 +72,7 @@ struct Ahead {
     at: usize,
     /// Most candidates taken or read from `at` on.
     limit: usize,
-    /// The window `limit` is (before the attempts left cap it), and its
-    /// least and most.
-    window: usize,
-    least: usize,
+    /// `limit` before the attempts left cap it.
     most: usize,
     /// Whether the loop is reading a candidate itself.
     busy: bool,
@@ -91,15 +91,19 @@ impl Ahead {
     ///
     /// A candidate whose centre lies in the square (`quads`, full px) of
     /// one before it that is being read or waits for the loop is passed
-    /// over for now: the quads of one tag come in runs (its data square,
-    /// its outline, linked and rim quads), and should the first read a
-    /// tag, the loop skips the rest, so reading them at the same time
-    /// would be in vain; and a thread reading another tag meanwhile reads
-    /// pixels its own cache has not held yet, where the rest of a run is
-    /// read best by the thread that read the first. On the wild
-    /// benchmark's 4K frames with 2 threads (pinned), decoding took 3.4 ms
-    /// a frame in the median, against 3.8-3.9 ms when threads took the
-    /// next candidate whatever it lay in.
+    /// over while another is left: the quads of one tag come in runs (its
+    /// data square, its outline, linked and rim quads), and should the
+    /// first read a tag, the loop skips the rest, so reading them at the
+    /// same time would be in vain; and a thread reading another tag
+    /// meanwhile reads pixels its own cache has not held yet, where the
+    /// rest of a run is read best by the thread that read the first. On
+    /// the wild benchmark's 4K frames with 2 threads (pinned), decoding
+    /// took 3.4 ms a frame in the median, against 3.8-3.9 ms when threads
+    /// took the next candidate whatever it lay in. When every candidate
+    /// left lies in such a square, the first is taken all the same rather
+    /// than wait: the first of its run is then often a tag's hard quad,
+    /// read to nothing for milliseconds, and with the wait the second
+    /// thread stood idle 0.8-1.0 ms of a 4K frame's decoding.
     fn take(
         &mut self,
         quads: &[Quad],
@@ -115,13 +119,19 @@ impl Ahead {
         if pending.len() >= self.limit {
             return None;
         }
-        let k = (self.at..self.slots.len()).find(|&k| {
-            matches!(self.slots[k], Slot::Free)
-                && !pending
-                    .iter()
-                    .any(|&m| m < k && inside(&quads[m], centres[k]))
-                && wanted(k, &self.found, &self.foreign)
-        })?;
+        let free: Vec<usize> = (self.at..self.slots.len())
+            .filter(|&k| matches!(self.slots[k], Slot::Free))
+            .collect();
+        let apart = |k: usize| {
+            !pending
+                .iter()
+                .any(|&m| m < k && inside(&quads[m], centres[k]))
+        };
+        let wanted = |k: usize| wanted(k, &self.found, &self.foreign);
+        let k = match free.iter().copied().find(|&k| apart(k) && wanted(k)) {
+            Some(k) => k,
+            None => free.iter().copied().find(|&k| wanted(k))?,
+        };
         self.slots[k] = Slot::Taken;
         Some(k)
     }
@@ -213,17 +223,9 @@ impl Shared<'_> {
     ) -> Outcome {
         let mut g = self.lock();
         // The candidates from `at` to `j` are skipped: any taken or read
-        // was read in vain.
-        let in_vain = g.slots[g.at..j].iter().any(|s| !matches!(s, Slot::Free));
-        g.window = if in_vain {
-            g.least
-        } else if matches!(g.slots[j], Slot::Done(_)) {
-            (2 * g.window).min(g.most)
-        } else {
-            g.window
-        };
+        // was read in vain, and is no longer counted against the limit.
         g.at = j;
-        g.limit = g.window.min(left);
+        g.limit = g.most.min(left);
         loop {
             match &g.slots[j] {
                 Slot::Done(_) => {
@@ -309,16 +311,14 @@ pub(crate) fn decode_candidates_par<W: Default + Send>(
             scratch(&mut w),
         )
     };
-    let (least, most) = (workers.threads(), AHEAD_PER_THREAD * workers.threads());
+    let most = AHEAD_PER_THREAD * workers.threads();
     let shared = Shared {
         ahead: Mutex::new(Ahead {
             slots: std::iter::repeat_with(Slot::default)
                 .take(candidates.len())
                 .collect(),
             at: 0,
-            limit: least.min(p.max_attempts),
-            window: least,
-            least,
+            limit: most.min(p.max_attempts),
             most,
             busy: false,
             found: Vec::new(),
@@ -382,8 +382,6 @@ mod tests {
             slots: std::iter::repeat_with(Slot::default).take(n).collect(),
             at: 0,
             limit,
-            window: limit,
-            least: limit,
             most: limit,
             busy: true,
             found: Vec::new(),
@@ -393,34 +391,37 @@ mod tests {
     }
 
     #[test]
-    fn candidates_inside_a_square_being_read_wait_for_it() {
-        // 0 and 1 are quads of one tag, 2 of another, 3 of the first again.
+    fn candidates_inside_a_square_being_read_come_after_the_others() {
+        // 0 and 1 are quads of one tag, 2 of another, 3 of the first again,
+        // 4 of a third.
         let quads = [
             square(0.0, 0.0, 100.0),
             square(10.0, 10.0, 80.0),
             square(500.0, 0.0, 100.0),
             square(5.0, 5.0, 90.0),
+            square(1000.0, 0.0, 100.0),
         ];
         let centres: Vec<[f64; 2]> = quads.iter().map(crate::math::centroid).collect();
         let all = |_: usize, _: &[Found], _: &[Quad]| true;
-        let mut a = ahead(quads.len(), 4);
-        // The loop reads 0 itself: 1 and 3 lie in it, 2 is taken.
+        let mut a = ahead(quads.len(), 8);
+        // The loop reads 0 itself: 1 and 3 lie in it, 2 and 4 come first.
         a.slots[0] = Slot::Taken;
         assert_eq!(a.take(&quads, &centres, all), Some(2));
-        // Nothing else lies outside the squares being read.
-        assert_eq!(a.take(&quads, &centres, all), None);
-        // 0 read and taken by the loop (it found nothing): 1 is free to
-        // read, then 3 lies in 1.
-        a.slots[0] = Slot::Free;
-        a.at = 1;
+        assert_eq!(a.take(&quads, &centres, all), Some(4));
+        // Then, rather than wait, the first that lies in 0.
         assert_eq!(a.take(&quads, &centres, all), Some(1));
+        assert_eq!(a.take(&quads, &centres, all), Some(3));
         assert_eq!(a.take(&quads, &centres, all), None);
+        // With the loop past 0 and 1 and at 2, 3 lies in no square being
+        // read: it comes before 4, in candidate order.
+        let mut a = ahead(quads.len(), 8);
+        a.at = 2;
+        a.slots[2] = Slot::Taken;
+        assert_eq!(a.take(&quads, &centres, all), Some(3));
         // A candidate the tags found would skip is never taken.
-        a.slots[1] = Slot::Free;
+        a.slots[3] = Slot::Free;
         let not_3 = |k: usize, _: &[Found], _: &[Quad]| k != 3;
-        a.slots[2] = Slot::Free;
-        assert_eq!(a.take(&quads, &centres, not_3), Some(1));
-        assert_eq!(a.take(&quads, &centres, not_3), Some(2));
+        assert_eq!(a.take(&quads, &centres, not_3), Some(4));
         assert_eq!(a.take(&quads, &centres, not_3), None);
     }
 
