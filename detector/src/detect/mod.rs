@@ -353,9 +353,9 @@ struct Workspace {
 struct Segmentation {
     tscratch: threshold::ThresholdScratch,
     binary: Vec<u8>,
-    /// `binary` as thresholded, when stage 2 runs in bands: they label
-    /// their rows of `binary` and read the rest here.
-    copy: Vec<u8>,
+    /// `binary` as thresholded, one bit a pixel, when stage 2 runs in
+    /// bands: they label their rows of `binary` and read foreground here.
+    copy: Vec<u64>,
     bscratch: contour_bands::BandScratch,
     contours: contours::Contours,
     polys: lines::Polygons,
@@ -589,15 +589,15 @@ fn rim_look(
 
 /// Stage 1 ([`threshold::threshold`]) in bands of rows on `workers`'
 /// threads, each with the buffers of the thread it runs on; the same bytes
-/// as one pass. Each band also copies its rows into `copy`, while they are
-/// in its cache: stage 2's bands (`contour_bands`) read the image as
-/// thresholded there.
+/// as one pass. Then `copy` is made the image packed one bit a pixel
+/// ([`contour_bands::pack`]): stage 2's bands (`contour_bands`) read the
+/// image as thresholded there.
 fn threshold_bands(
     img: &GrayView<'_>,
     p: &threshold::ThresholdParams,
     workers: &Workers<Workspace>,
     out: &mut Vec<u8>,
-    copy: &mut Vec<u8>,
+    copy: &mut Vec<u64>,
 ) -> threshold::Working {
     let work = threshold::working(img, p);
     let (w, h) = (work.width, work.height);
@@ -607,21 +607,17 @@ fn threshold_bands(
         .max(1);
     let per = h.div_ceil(bands).max(1);
     let pw = w + 2;
-    copy.resize(pw * (h + 2), 0);
-    copy[..pw].fill(0);
-    copy[(h + 1) * pw..].fill(0);
     workers.install(|| {
         rows.par_chunks_mut(per * pw)
-            .zip(copy[pw..(h + 1) * pw].par_chunks_mut(per * pw))
             .enumerate()
-            .for_each(|(k, (band, copy))| {
+            .for_each(|(k, band)| {
                 let y0 = k * per;
                 let mut ws = workers.scratch();
                 let rows = y0..(y0 + per).min(h);
                 threshold::threshold_rows(img, p, &work, rows, &mut ws.seg.tscratch, band);
-                copy.copy_from_slice(band);
             });
     });
+    contour_bands::pack(out, workers, copy);
     work
 }
 
