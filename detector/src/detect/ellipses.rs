@@ -530,6 +530,14 @@ const FRAG_MIN_LENGTH: f64 = 1.8;
 /// at 4K the fits took most of the ellipse stage), then the pairs are
 /// taken as above, longest fragment first, each with its best partner
 /// still free.
+///
+/// Each pair is fitted once, as the fragment that comes first in that
+/// order and then the other: a fragment's pairs with one before it are
+/// never looked at, since that one, when its turn came with this one free,
+/// took a partner. (Both ways, as each fragment's pairs were fitted
+/// before, the ellipse stage spent half its fits on pairs never looked at:
+/// 0.3-0.9 ms of a cluttered 1080p frame went to pairing, 1.5-2.7 ms of a
+/// 4K frame's.)
 fn group_fragments<W: Default + Send>(
     contours: &Contours,
     params: &EllipseParams,
@@ -567,8 +575,16 @@ fn group_fragments<W: Default + Send>(
     // No pair is farther apart than this (see FRAG_REACH).
     let window = FRAG_REACH * pieces.iter().map(|f| f.length).fold(0.0, f64::max);
     let min_points = (params.min_arc_points / ARC_SHARE) as u32;
-    // Every pair that fits: by fragment, each one's partners in the order
-    // of `by_x`.
+    // The order the pairs are taken in, longest fragment first, and each
+    // fragment's place in it.
+    let mut order: Vec<usize> = (0..frags.len()).collect();
+    order.sort_by_key(|&i| std::cmp::Reverse(frags[i].len));
+    let mut place = vec![0usize; frags.len()];
+    for (k, &i) in order.iter().enumerate() {
+        place[i] = k;
+    }
+    // Every pair that fits: by fragment, each one's partners after it in
+    // `order`, in the order of `by_x`.
     let mut fits: Vec<(u32, u32, Conic)> = Vec::new();
     let mut buf = std::mem::take(&mut scratch.pts);
     collect_ranges_with(
@@ -583,7 +599,7 @@ fn group_fragments<W: Default + Send>(
                 let lo = xs.partition_point(|&x| x < fi.mid[0] - window);
                 let hi = xs.partition_point(|&x| x <= fi.mid[0] + window);
                 for &j in &by_x[lo..hi] {
-                    if j == i || frags[i].len + frags[j].len < min_points {
+                    if place[j] <= place[i] || frags[i].len + frags[j].len < min_points {
                         continue;
                     }
                     let fj = &pieces[j];
@@ -639,8 +655,6 @@ fn group_fragments<W: Default + Send>(
         &fits[lo..lo + fits[lo..].partition_point(|f| f.0 == i)]
     };
     let mut used = vec![false; frags.len()];
-    let mut order: Vec<usize> = (0..frags.len()).collect();
-    order.sort_by_key(|&i| std::cmp::Reverse(frags[i].len));
     for &i in &order {
         if used[i] {
             continue;
@@ -1050,6 +1064,38 @@ mod tests {
             (e.a - (r - 0.5)).abs() < 0.2 && (e.b - (r - 0.5)).abs() < 0.2,
             "{e:?}"
         );
+    }
+
+    /// Three discs cut by sticks, close enough that pieces of two rims lie
+    /// within each other's reach: each rim is found once, from pieces of
+    /// its own (every pair is fitted once, in the order pairs are taken).
+    #[test]
+    fn rims_cut_into_pieces_side_by_side_are_each_found_from_their_own() {
+        let discs = [
+            ([40.0, 36.0], 14.0),
+            ([76.0, 40.0], 12.0),
+            ([56.0, 72.0], 13.0),
+        ];
+        let sticks = [0.5f64, 2.1];
+        let dark = |x: f64, y: f64| {
+            discs.iter().any(|&(c, r): &([f64; 2], f64)| {
+                let (dx, dy) = (x - c[0], y - c[1]);
+                dx.hypot(dy) <= r
+                    && sticks
+                        .iter()
+                        .all(|&a| (dx * -a.sin() + dy * a.cos()).abs() > 1.5)
+            })
+        };
+        assert!(ellipses_of(112, 96, dark, false).is_empty());
+        let found = ellipses_of(112, 96, dark, true);
+        assert_eq!(found.len(), discs.len(), "{found:?}");
+        for (c, r) in discs {
+            let e = found
+                .iter()
+                .find(|e| norm(sub(e.centre, c)) < 0.2)
+                .unwrap_or_else(|| panic!("no rim at {c:?}: {found:?}"));
+            assert!(e.pieced && (e.a - (r - 0.5)).abs() < 0.3, "{e:?}");
+        }
     }
 
     #[test]
