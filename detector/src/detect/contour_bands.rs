@@ -80,7 +80,9 @@ fn pack_words(bin: &[u8], first: usize, words: &mut [u64]) {
         let bytes = &bin[at..(at + 64).min(bin.len())];
         *w = match bytes.first_chunk::<64>() {
             Some(b) => b
-                .chunks_exact(8)
+                .as_chunks::<8>()
+                .0
+                .iter()
                 .enumerate()
                 .fold(0, |m, (k, c)| m | (pack_8(c) << (8 * k))),
             None => bytes
@@ -97,8 +99,8 @@ fn pack_words(bin: &[u8], first: usize, words: &mut [u64]) {
 /// (a loop over the bits, which the compiler did not vectorise, made
 /// stage 1 0.7 ms slower a 4K frame).
 #[inline(always)]
-fn pack_8(c: &[u8]) -> u64 {
-    let x = u64::from_le_bytes(c.try_into().expect("8 bytes")) & 0x0101_0101_0101_0101;
+fn pack_8(c: &[u8; 8]) -> u64 {
+    let x = u64::from_le_bytes(*c) & 0x0101_0101_0101_0101;
     x.wrapping_mul(0x0102_0408_1020_4080) >> 56
 }
 

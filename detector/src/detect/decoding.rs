@@ -230,16 +230,16 @@ pub(crate) struct Decoded {
     /// The data squares of tags of a built-in family that is not decoded
     /// (the cells' pitch shows that family's grid and no target's, see
     /// [`shown_grid`]), not inside a tag found: quads with four seen
-    /// corners, and prints the rim look aligned; or quads that read by
-    /// the code as such a family ([`reads_as_other_family`]). The candidates inside
-    /// one are that tag's other quads (its outline, pieces of it), and a
-    /// later look at its rim or around it could only find the same square
-    /// again; skipping them took a third of the time of a ct14-only
+    /// corners, and prints the rim look aligned; or quads that read by the
+    /// code as such a family ([`reads_as_other_family`]). The candidates
+    /// inside one are that tag's other quads (its outline, pieces of it),
+    /// and a later look at its rim or around it could only find the same
+    /// square again; skipping them took a third of the time of a ct14-only
     /// detector on the wild benchmark's 1080p frames, where the ct8 tags
-    /// had cost as much as the ct14 ones. Why four seen corners: quads
-    /// with estimated corners through clutter, 23 to 139 px, showed ct8's
-    /// grid on 6 of the 3000 wild frames (phases 0.12-0.23), around ct14
-    /// tags, 4 of which were then lost.
+    /// had cost as much as the ct14 ones. Why four seen corners: quads with
+    /// estimated corners through clutter, 23 to 139 px, showed ct8's grid
+    /// on 6 of the 3000 wild frames (phases 0.12-0.23), around ct14 tags, 4
+    /// of which were then lost.
     pub foreign: Vec<Quad>,
     /// The candidates decoded.
     pub attempts: usize,

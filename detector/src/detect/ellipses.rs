@@ -34,6 +34,7 @@
 //! centre, gives the tag centre instead (its own projection bias is ten
 //! times smaller).
 
+use super::by_x::ByX;
 use super::contours::Contours;
 use super::lines::Polygons;
 use super::parallel::{collect_ranges_with, Workers};
@@ -569,9 +570,8 @@ fn group_fragments<W: Default + Send>(
         })
         .collect();
     // By the middle's x, to look only at the fragments within reach.
-    let mut by_x: Vec<usize> = (0..frags.len()).collect();
-    by_x.sort_by(|&i, &j| pieces[i].mid[0].total_cmp(&pieces[j].mid[0]));
-    let xs: Vec<f64> = by_x.iter().map(|&i| pieces[i].mid[0]).collect();
+    let mut by_x = ByX::default();
+    by_x.fill(pieces.len(), |i| pieces[i].mid[0]);
     // No pair is farther apart than this (see FRAG_REACH).
     let window = FRAG_REACH * pieces.iter().map(|f| f.length).fold(0.0, f64::max);
     let min_points = (params.min_arc_points / ARC_SHARE) as u32;
@@ -584,7 +584,7 @@ fn group_fragments<W: Default + Send>(
         place[i] = k;
     }
     // Every pair that fits: by fragment, each one's partners after it in
-    // `order`, in the order of `by_x`.
+    // `order`, in x order.
     let mut fits: Vec<(u32, u32, Conic)> = Vec::new();
     let mut buf = std::mem::take(&mut scratch.pts);
     collect_ranges_with(
@@ -596,9 +596,8 @@ fn group_fragments<W: Default + Send>(
         |r, buf, fits| {
             for i in r {
                 let fi = &pieces[i];
-                let lo = xs.partition_point(|&x| x < fi.mid[0] - window);
-                let hi = xs.partition_point(|&x| x <= fi.mid[0] + window);
-                for &j in &by_x[lo..hi] {
+                for &j in by_x.within(fi.mid[0], window) {
+                    let j = j as usize;
                     if place[j] <= place[i] || frags[i].len + frags[j].len < min_points {
                         continue;
                     }

@@ -41,6 +41,7 @@
 //! nothing has to be reset by callers.
 
 pub(crate) mod bridges;
+mod by_x;
 mod config;
 mod contour_bands;
 pub(crate) mod contours;

@@ -43,6 +43,7 @@
 use std::ops::Range;
 
 use super::bridges::Links;
+use super::by_x::ByX;
 use super::corners::{Corner, Segment};
 use super::ellipses::Ellipse;
 use super::parallel::{collect_ranges, collect_ranges_with, Workers};
@@ -207,55 +208,11 @@ pub(crate) struct QuadScratch {
     reordered: Vec<Candidate>,
     /// The candidates' indices in their sorted order.
     order: Vec<u32>,
-    /// The frame's corners by x, for the searches near a point.
-    by_x: CornersByX,
-}
-
-/// Margin (px) [`CornersByX::within`] adds to its reach: far above the
-/// rounding of its bounds, far below a pixel, so that no corner the
-/// caller's distance test keeps lies outside the band.
-const BY_X_MARGIN_PX: f64 = 1e-6;
-
-/// The indices of the frame's corners with a finite position, sorted by
-/// x, so that the searches that look for corners near a point (around an
-/// ellipse, near an estimated corner) look at a band of the frame's width
-/// rather than at every corner: a cluttered 4K frame has 500-800 corners
-/// and 300 candidates, and Replace-Fake-Corners, which scanned every
-/// corner for each estimated corner, took 0.2-0.3 ms of its 0.8 ms quad
-/// stage. A sorted list, not a grid: the corners are few, and a band
-/// narrows them enough.
-#[derive(Debug, Default)]
-struct CornersByX {
-    /// Corner indices, by x (then by index).
-    order: Vec<u32>,
-    /// Their x, in the same order.
-    xs: Vec<f64>,
-}
-
-impl CornersByX {
-    fn fill(&mut self, corners: &[Corner]) {
-        self.order.clear();
-        self.order.extend(
-            (0..corners.len() as u32)
-                .filter(|&i| corners[i as usize].pos.iter().all(|v| v.is_finite())),
-        );
-        self.order
-            .sort_by(|&i, &j| corners[i as usize].pos[0].total_cmp(&corners[j as usize].pos[0]));
-        self.xs.clear();
-        self.xs
-            .extend(self.order.iter().map(|&i| corners[i as usize].pos[0]));
-    }
-
-    /// The corners (indices, by x) whose x lies from `x - r` to `x + r`,
-    /// a hair wider ([`BY_X_MARGIN_PX`]): every corner with a finite
-    /// position within `r` of a point at `x`, and a few more the caller's
-    /// own test leaves out (none if `x` or `r` is NaN).
-    fn within(&self, x: f64, r: f64) -> &[u32] {
-        let r = r + BY_X_MARGIN_PX;
-        let lo = self.xs.partition_point(|&v| v < x - r);
-        let hi = self.xs.partition_point(|&v| v <= x + r).max(lo);
-        &self.order[lo..hi]
-    }
+    /// The frame's corners by x, for the searches near a point: a
+    /// cluttered 4K frame has 500-800 corners and 300 candidates, and
+    /// Replace-Fake-Corners, which scanned every corner for each estimated
+    /// corner, took 0.2-0.3 ms of its 0.8 ms quad stage.
+    by_x: ByX,
 }
 
 /// Whether `b` follows `a` along an edge; returns the distance along it.
@@ -529,7 +486,7 @@ pub(crate) fn find_candidates<W: Default + Send>(
     out.truncate(p.max_candidates);
     s.borders = borders;
     let mut by_x = std::mem::take(&mut s.by_x);
-    by_x.fill(corners);
+    by_x.fill(corners.len(), |i| corners[i].pos[0]);
     // Around each ellipse.
     let n = ellipses.len();
     collect_ranges_with(workers, n, MIN_ELLIPSES_PER_PIECE, s, out, |r, s, out| {
@@ -689,7 +646,7 @@ fn data_squares_first(out: &mut Vec<Candidate>, s: &mut QuadScratch) {
 /// group.
 fn search_ellipse(
     corners: &[Corner],
-    by_x: &CornersByX,
+    by_x: &ByX,
     e: &Ellipse,
     p: &QuadParams,
     s: &mut QuadScratch,
@@ -757,7 +714,7 @@ fn one_corner(c: &Corner, o: [f64; 2], p: &QuadParams, out: &mut Vec<Candidate>)
 fn with_real_corners(
     cand: &Candidate,
     corners: &[Corner],
-    by_x: &CornersByX,
+    by_x: &ByX,
     p: &QuadParams,
 ) -> Option<Candidate> {
     let mut cand = *cand;
@@ -1179,7 +1136,7 @@ mod tests {
         assert!(out.iter().all(|c| c.linked));
     }
 
-    /// [`with_real_corners`] as it was before [`CornersByX`]: a scan of
+    /// [`with_real_corners`] as it was before [`ByX`]: a scan of
     /// every corner for each estimated one.
     fn with_real_corners_by_scan(
         cand: &Candidate,
@@ -1208,7 +1165,7 @@ mod tests {
     }
 
     proptest::proptest! {
-        /// The searches near a point through [`CornersByX`] find what a
+        /// The searches near a point through [`ByX`] find what a
         /// scan of every corner finds: the corners around an ellipse, in
         /// index order, and the corners replacing estimated ones (of the
         /// nearest, the first). Positions on a coarse grid and few
@@ -1234,8 +1191,8 @@ mod tests {
             if let Some(c) = corners.first_mut() {
                 c.pos[0] = f64::NAN;
             }
-            let mut by_x = CornersByX::default();
-            by_x.fill(&corners);
+            let mut by_x = ByX::default();
+            by_x.fill(corners.len(), |i| corners[i].pos[0]);
             let centre = [f64::from(at.0) * 2.0, f64::from(at.1) * 2.0];
             let e = Ellipse {
                 centre,

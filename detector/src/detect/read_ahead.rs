@@ -14,16 +14,15 @@
 //! not skip, preferring one that lies in no square being read (see
 //! [`Ahead::take`]), as long as fewer than [`AHEAD_PER_THREAD`] per thread
 //! are taken or read from the one the loop is at on (and no more than the
-//! attempts left), reads it and leaves the outcome for the loop. The loop takes the
-//! outcome of each candidate it decodes: ready, or read by itself if no
-//! thread took it; while another thread is reading it, the
-//! loop reads ahead too rather than wait. There is no barrier: a thread
-//! waits only when the candidates ahead are all taken, or when the loop
-//! is about to take a ready outcome (which may find a tag that makes it
-//! skip what the thread would read). A reading ahead is in vain when a
-//! tag found meanwhile makes the loop skip its candidate, and it costs
-//! time when the loop has finished before it: the last readings are
-//! waited for.
+//! attempts left), reads it and leaves the outcome for the loop. The loop
+//! takes the outcome of each candidate it decodes: ready, or read by itself
+//! if no thread took it; while another thread is reading it, the loop reads
+//! ahead too rather than wait. There is no barrier: a thread waits only
+//! when the candidates ahead are all taken, or when the loop is about to
+//! take a ready outcome (which may find a tag that makes it skip what the
+//! thread would read). A reading ahead is in vain when a tag found
+//! meanwhile makes the loop skip its candidate, and it costs time when the
+//! loop has finished before it: the last readings are waited for.
 
 use std::sync::{Condvar, Mutex, MutexGuard, PoisonError};
 
@@ -119,19 +118,16 @@ impl Ahead {
         if pending.len() >= self.limit {
             return None;
         }
-        let free: Vec<usize> = (self.at..self.slots.len())
-            .filter(|&k| matches!(self.slots[k], Slot::Free))
-            .collect();
+        let free = || (self.at..self.slots.len()).filter(|&k| matches!(self.slots[k], Slot::Free));
         let apart = |k: usize| {
             !pending
                 .iter()
                 .any(|&m| m < k && inside(&quads[m], centres[k]))
         };
         let wanted = |k: usize| wanted(k, &self.found, &self.foreign);
-        let k = match free.iter().copied().find(|&k| apart(k) && wanted(k)) {
-            Some(k) => k,
-            None => free.iter().copied().find(|&k| wanted(k))?,
-        };
+        let k = free()
+            .find(|&k| apart(k) && wanted(k))
+            .or_else(|| free().find(|&k| wanted(k)))?;
         self.slots[k] = Slot::Taken;
         Some(k)
     }
