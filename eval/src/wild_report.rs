@@ -67,7 +67,7 @@ fn describe(factor: &str) -> String {
         "defocus_px" => "defocus blur (px)",
         "motion_blur_px" => "motion blur (px)",
         "read_noise_dn" => "sensor read noise (DN)",
-        "jpeg_quality" => "JPEG quality",
+        "jpeg_quality" => "JPEG quality (frames with a JPEG step)",
         "occluder_kind" => "occluder kind",
         "occluder_coverage" => "share of the marker square occluded",
         "markers_per_frame" => "markers per frame",

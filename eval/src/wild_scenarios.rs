@@ -29,6 +29,12 @@ pub const BAR_MAX_COVERAGE: f64 = 0.30;
 /// coverage" (the wild set draws up to 40%).
 pub const HEAVY_MAX_COVERAGE: f64 = 0.40;
 
+/// Highest JPEG quality of the field report's compressed frames ("JPEG at
+/// quality 25-60"): the row of the main bar's markers in frames
+/// compressed at most this well (a quality of 0 is a frame with no JPEG
+/// step, and is not in it).
+pub const FIELD_JPEG_MAX_QUALITY: f64 = 60.0;
+
 /// Defocus (Gaussian sigma, px) from which a marker counts as heavily
 /// blurred: the upper 40% of the wild set's drawn range (0-2 px).
 pub const HEAVY_DEFOCUS_PX: f64 = 1.2;
@@ -173,6 +179,16 @@ fn scenarios() -> Vec<Scenario> {
             "the field report's dense frames",
             Some(0.98),
             |o| main_bar(o) && num(&o.factors, "markers_per_frame").is_some_and(|n| n >= 2.0),
+        ),
+        Scenario::new(
+            "first row, JPEG quality 60 or lower",
+            "the field report's \"JPEG at quality 25-60\"",
+            None,
+            |o| {
+                main_bar(o)
+                    && num(&o.factors, "jpeg_quality")
+                        .is_some_and(|q| q > 0.0 && q <= FIELD_JPEG_MAX_QUALITY)
+            },
         ),
         Scenario::new(
             "first row: glared",
@@ -447,11 +463,15 @@ mod tests {
     /// Markers that each land in known scenarios.
     fn markers() -> Vec<MarkerOutcome> {
         vec![
-            // 0: clean, found.
+            // 0: clean, found; no JPEG step.
             marker(
                 0,
                 Status::Correct,
-                &[(SIDE_FACTOR, n(30.0)), ("occluder_coverage", n(0.0))],
+                &[
+                    (SIDE_FACTOR, n(30.0)),
+                    ("occluder_coverage", n(0.0)),
+                    ("jpeg_quality", n(0.0)),
+                ],
             ),
             // 1: glared (the frame's glare on marker 1), missed; two markers.
             marker(
@@ -476,7 +496,7 @@ mod tests {
                     ("markers_per_frame", n(2.0)),
                 ],
             ),
-            // 3: a stick on 20%, found.
+            // 3: a stick on 20%, found; JPEG quality 61 (over the report's).
             marker(
                 0,
                 Status::Correct,
@@ -484,6 +504,7 @@ mod tests {
                     (SIDE_FACTOR, n(35.0)),
                     ("occluder_coverage", n(0.2)),
                     ("occluder_kind", t("stick")),
+                    ("jpeg_quality", n(61.0)),
                 ],
             ),
             // 4: a cable on 35%, missed: heavy occlusion and cables, not the main bar.
@@ -498,7 +519,8 @@ mod tests {
             ),
             // 5: too small for any bar.
             marker(0, Status::Correct, &[(SIDE_FACTOR, n(20.0))]),
-            // 6: glare peak 0 (no glare in the frame) though marker 0 is named.
+            // 6: glare peak 0 (no glare in the frame) though marker 0 is
+            // named; a frame compressed at JPEG quality 60.
             marker(
                 0,
                 Status::Missed,
@@ -506,6 +528,7 @@ mod tests {
                     (SIDE_FACTOR, n(28.0)),
                     ("glare_peak", n(0.0)),
                     ("glare_marker", n(0.0)),
+                    ("jpeg_quality", n(60.0)),
                 ],
             ),
         ]
@@ -533,6 +556,9 @@ mod tests {
             "frames of 2+ markers, coverage <= 30%, side >= 24 px",
         );
         assert_eq!((multi.markers, multi.found, multi.rough), (2, 1, 1));
+        // Only marker 6 (quality 60): 0 is no JPEG step, 61 is over.
+        let jpeg = row(&rows, "first row, JPEG quality 60 or lower");
+        assert_eq!((jpeg.markers, jpeg.found, jpeg.bar), (1, 0, None));
         let glared = row(&rows, "first row: glared");
         assert_eq!((glared.markers, glared.found), (1, 0));
         let blur = row(&rows, "first row: heavy blur, not glared");

@@ -436,14 +436,31 @@ fn min_detectable_side(sides: &FactorCurve, system: &str) -> Option<(f64, f64)> 
 /// One marker's value of a factor: (system, value, outcome).
 type Observation<'a> = (&'a str, &'a FactorValue, Status);
 
+/// Factors whose value 0 says the effect was not applied at all, off the
+/// scale the factor is drawn on: a `jpeg_quality` of 0 is a frame with no
+/// JPEG step (datasets/README.md), the best case rather than the lowest
+/// quality. Their curves leave those markers out: half the wild frames have
+/// no JPEG step, and as 0 they filled the lowest bins with lossless frames,
+/// so that the curve's "lowest quality" point read as well as its highest.
+/// The other events' 0 (no blur, no glare, no shadow) is the low end of
+/// their own scale and stays in.
+const OFF_AT_ZERO: &[&str] = &["jpeg_quality"];
+
+/// Whether value `v` of factor `f` is the effect left off
+/// ([`OFF_AT_ZERO`]).
+fn off_at_zero(f: &str, v: &FactorValue) -> bool {
+    OFF_AT_ZERO.contains(&f) && v.as_num() == Some(0.0)
+}
+
 /// Detection rate against every factor any counted marker was drawn with
-/// (the jitter group excepted: it names scenes, it is not a condition).
+/// (the jitter group excepted: it names scenes, it is not a condition), a
+/// factor of [`OFF_AT_ZERO`] over the markers it was applied to.
 fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
     let mut by_factor: BTreeMap<&str, Vec<Observation>> = BTreeMap::new();
     for r in runs.iter().filter(|r| !r.tag_free) {
         for o in counted(r) {
             for (f, v) in &o.factors {
-                if f != JITTER_GROUP {
+                if f != JITTER_GROUP && !off_at_zero(f, v) {
                     by_factor.entry(f.as_str()).or_default().push((
                         r.detector.as_str(),
                         v,
@@ -996,5 +1013,47 @@ pub(crate) mod tests {
         assert!(s
             .factors_csv()
             .contains("occluder_kind,categorical,0,\"stick\",,,coppertag,15,"));
+    }
+
+    /// A JPEG quality of 0 (no JPEG step) is left out of its curve, where
+    /// it would sit below quality 30 as the lowest bin; a defocus of 0 (a
+    /// sharp frame) stays in its own.
+    #[test]
+    fn frames_without_a_jpeg_step_are_not_its_lowest_quality() {
+        // Quality 30: 2 of 10 found; 90: 8 of 10; no JPEG step: all 20.
+        let mut outcomes = Vec::new();
+        for (q, found, n) in [(30.0, 2, 10), (90.0, 8, 10), (0.0, 20, 20)] {
+            for k in 0..n {
+                let status = if k < found {
+                    Status::Correct
+                } else {
+                    Status::Missed
+                };
+                outcomes.push(outcome(
+                    outcomes.len(),
+                    status,
+                    &[
+                        ("jpeg_quality", FactorValue::Num(q)),
+                        (
+                            "defocus_px",
+                            FactorValue::Num(if q == 0.0 { 0.0 } else { 1.0 }),
+                        ),
+                    ],
+                ));
+            }
+        }
+        let s = summarise(&[run("coppertag", outcomes)]);
+        let jpeg = s
+            .factors
+            .iter()
+            .find(|c| c.factor == "jpeg_quality")
+            .unwrap();
+        assert_eq!(jpeg.bins, Some(Bins::Values(vec![30.0, 90.0])));
+        let rates: Vec<(usize, usize)> =
+            jpeg.points.iter().map(|p| (p.markers, p.correct)).collect();
+        assert_eq!(rates, [(10, 2), (10, 8)]);
+        let defocus = s.factors.iter().find(|c| c.factor == "defocus_px").unwrap();
+        assert_eq!(defocus.bins, Some(Bins::Values(vec![0.0, 1.0])));
+        assert_eq!(defocus.points.iter().map(|p| p.markers).sum::<usize>(), 40);
     }
 }
