@@ -68,6 +68,22 @@ impl FactorValue {
 /// Factor -> value.
 pub type Factors = BTreeMap<String, FactorValue>;
 
+/// Factors whose value 0 says the effect was not applied at all, off the
+/// scale the factor is drawn on: a `jpeg_quality` of 0 is a frame with no
+/// JPEG step (datasets/README.md), the best case rather than the lowest
+/// quality. The factor curves leave those markers out (as 0 they filled
+/// the lowest bins with lossless frames, so that the curve's "lowest
+/// quality" point read as well as its highest), and the scenario rows of
+/// compressed frames do not count them. The other events' 0 (no blur, no
+/// glare, no shadow) is the low end of their own scale.
+const OFF_AT_ZERO: &[&str] = &["jpeg_quality"];
+
+/// Whether value `v` of factor `factor` says the effect was left off
+/// ([`OFF_AT_ZERO`]).
+pub(crate) fn left_off(factor: &str, v: &FactorValue) -> bool {
+    OFF_AT_ZERO.contains(&factor) && v.as_num() == Some(0.0)
+}
+
 /// All draws of a dataset.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Draws {

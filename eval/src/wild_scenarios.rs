@@ -14,7 +14,7 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
-use crate::draws::Factors;
+use crate::draws::{left_off, Factors};
 use crate::wild::{MarkerOutcome, Status, SIDE_FACTOR};
 
 /// Smallest marker square (px) of the issue's bars: the size its small-tag
@@ -32,7 +32,7 @@ pub const HEAVY_MAX_COVERAGE: f64 = 0.40;
 /// Highest JPEG quality of the field report's compressed frames ("JPEG at
 /// quality 25-60"): the row of the main bar's markers in frames
 /// compressed at most this well (a quality of 0 is a frame with no JPEG
-/// step, and is not in it).
+/// step, and is not in it: [`crate::draws::left_off`]).
 pub const FIELD_JPEG_MAX_QUALITY: f64 = 60.0;
 
 /// Defocus (Gaussian sigma, px) from which a marker counts as heavily
@@ -186,8 +186,10 @@ fn scenarios() -> Vec<Scenario> {
             None,
             |o| {
                 main_bar(o)
-                    && num(&o.factors, "jpeg_quality")
-                        .is_some_and(|q| q > 0.0 && q <= FIELD_JPEG_MAX_QUALITY)
+                    && o.factors.get("jpeg_quality").is_some_and(|v| {
+                        !left_off("jpeg_quality", v)
+                            && v.as_num().is_some_and(|q| q <= FIELD_JPEG_MAX_QUALITY)
+                    })
             },
         ),
         Scenario::new(

@@ -26,7 +26,7 @@ use nalgebra::{Matrix3, Vector3};
 use serde::{Deserialize, Serialize};
 
 use crate::binning::Bins;
-use crate::draws::{FactorValue, JITTER_GROUP};
+use crate::draws::{left_off, FactorValue, JITTER_GROUP};
 use crate::metrics::Stats;
 use crate::pose_error::{angle_between, rotation_of};
 use crate::report::SYSTEMS;
@@ -436,31 +436,16 @@ fn min_detectable_side(sides: &FactorCurve, system: &str) -> Option<(f64, f64)> 
 /// One marker's value of a factor: (system, value, outcome).
 type Observation<'a> = (&'a str, &'a FactorValue, Status);
 
-/// Factors whose value 0 says the effect was not applied at all, off the
-/// scale the factor is drawn on: a `jpeg_quality` of 0 is a frame with no
-/// JPEG step (datasets/README.md), the best case rather than the lowest
-/// quality. Their curves leave those markers out: half the wild frames have
-/// no JPEG step, and as 0 they filled the lowest bins with lossless frames,
-/// so that the curve's "lowest quality" point read as well as its highest.
-/// The other events' 0 (no blur, no glare, no shadow) is the low end of
-/// their own scale and stays in.
-const OFF_AT_ZERO: &[&str] = &["jpeg_quality"];
-
-/// Whether value `v` of factor `f` is the effect left off
-/// ([`OFF_AT_ZERO`]).
-fn off_at_zero(f: &str, v: &FactorValue) -> bool {
-    OFF_AT_ZERO.contains(&f) && v.as_num() == Some(0.0)
-}
-
 /// Detection rate against every factor any counted marker was drawn with
 /// (the jitter group excepted: it names scenes, it is not a condition), a
-/// factor of [`OFF_AT_ZERO`] over the markers it was applied to.
+/// factor whose value can say it was left off ([`left_off`]) over the
+/// markers it was applied to.
 fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
     let mut by_factor: BTreeMap<&str, Vec<Observation>> = BTreeMap::new();
     for r in runs.iter().filter(|r| !r.tag_free) {
         for o in counted(r) {
             for (f, v) in &o.factors {
-                if f != JITTER_GROUP && !off_at_zero(f, v) {
+                if f != JITTER_GROUP && !left_off(f, v) {
                     by_factor.entry(f.as_str()).or_default().push((
                         r.detector.as_str(),
                         v,
