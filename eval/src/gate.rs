@@ -101,13 +101,20 @@ pub fn wild_key(system: &str) -> String {
     format!("{system}/wild")
 }
 
+/// The key of a system's entry for the dense sets
+/// ([`crate::wild_summary::DENSE_SUFFIX`]).
+pub fn dense_key(system: &str) -> String {
+    format!("{system}/dense")
+}
+
 /// A baseline: entries by `detector/dataset`, the wild slice's entries by
 /// `system/wild`, plus our speed relative to each peer.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
 pub struct Baseline {
     /// How the baseline was made.
     pub made_by: String,
-    /// Wild-slice entries by `system/wild` (systems in [`WILD_GATED`]).
+    /// Wild-slice entries by `system/wild`, and `system/dense` for the
+    /// dense sets (systems in [`WILD_GATED`]).
     /// Written right after `made_by` so that adding them to an existing
     /// file only adds lines.
     #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
@@ -146,12 +153,24 @@ fn key(s: &Summary) -> String {
     format!("{}/{}", s.detector, s.dataset)
 }
 
-/// The wild entries of the gated systems ([`WILD_GATED`]) in `w`.
-pub fn wild_entries_of(w: &WildSummary) -> BTreeMap<String, WildBaselineEntry> {
+/// The rows of `w` by their wild-entry key: `system/wild`, and
+/// `system/dense` for the dense sets' rows.
+fn wild_rows(w: &WildSummary) -> BTreeMap<String, &SystemRow> {
+    let dense = w.dense.iter().flat_map(|d| d.systems.iter());
     w.systems
         .iter()
-        .filter(|r| WILD_GATED.contains(&r.system.as_str()))
-        .map(|r| (wild_key(&r.system), WildBaselineEntry::of(r)))
+        .map(|r| (wild_key(&r.system), r))
+        .chain(dense.map(|r| (dense_key(&r.system), r)))
+        .collect()
+}
+
+/// The wild entries of the gated systems ([`WILD_GATED`]) in `w`, the
+/// dense sets' rows too.
+pub fn wild_entries_of(w: &WildSummary) -> BTreeMap<String, WildBaselineEntry> {
+    wild_rows(w)
+        .into_iter()
+        .filter(|(_, r)| WILD_GATED.contains(&r.system.as_str()))
+        .map(|(k, r)| (k, WildBaselineEntry::of(r)))
         .collect()
 }
 
@@ -187,6 +206,28 @@ pub fn baseline_of(
             .map(|r| r.peers.iter().map(|(k, p)| (k.clone(), p.ratio)).collect())
             .unwrap_or_default(),
     }
+}
+
+/// Re-makes every part of `b` that the wild slice decides, keeping the
+/// rest as it is, after a deliberate change to the wild specs: the wild
+/// entries (from `w`) and the per-dataset entries of the wild slice's
+/// datasets (`w.datasets`: the sampled scenes, their jitter sets and the
+/// tag-free sets), which the sweep check compares exactly too, from
+/// `summaries`. A wild dataset's entry the summaries do not have (a run
+/// of fewer systems) is left as it was. Returns how many per-dataset
+/// entries were written.
+pub fn update_wild(b: &mut Baseline, summaries: &[Summary], w: &WildSummary) -> usize {
+    b.wild = wild_entries_of(w);
+    let fresh = baseline_of(summaries, None, None, "");
+    let mut n = 0;
+    for (k, e) in fresh.entries {
+        let dataset = k.split_once('/').map_or(k.as_str(), |(_, d)| d);
+        if w.all_datasets().any(|d| d == dataset) {
+            b.entries.insert(k, e);
+            n += 1;
+        }
+    }
+    n
 }
 
 /// The exact checks shared by the sweep and wild entries: the detection
@@ -253,11 +294,7 @@ pub fn check(baseline: &Baseline, summaries: &[Summary], tol: Tolerances) -> Vec
 /// Compares a wild summary with the baseline's wild entries; returns the
 /// failures, one readable line each (empty = pass).
 pub fn check_wild(baseline: &Baseline, wild: &WildSummary) -> Vec<String> {
-    let now: BTreeMap<String, &SystemRow> = wild
-        .systems
-        .iter()
-        .map(|r| (wild_key(&r.system), r))
-        .collect();
+    let now = wild_rows(wild);
     let mut fails = Vec::new();
     for (k, b) in &baseline.wild {
         let Some(r) = now.get(k) else {

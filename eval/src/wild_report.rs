@@ -10,7 +10,10 @@ use crate::error::Result;
 use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
 use crate::sigma::{SigmaCoverage, SIGMA_MULTIPLE};
-use crate::wild_scenarios::{scenarios_csv, scenarios_table, SHARP_DEFOCUS_PX, SHARP_MOTION_PX};
+use crate::wild_scenarios::{
+    scenarios_csv, scenarios_table, HEAVY_DEFOCUS_PX, HEAVY_MOTION_PX, SHARP_DEFOCUS_PX,
+    SHARP_MOTION_PX,
+};
 use crate::wild_summary::{
     FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_MARKERS, MIN_DETECTABLE_RATE,
 };
@@ -279,39 +282,9 @@ fn sigma_sentence(w: &WildSummary) -> String {
     }
 }
 
-/// Writes the wild section's figures and CSVs into `dir` and returns its
-/// Markdown.
-pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
+/// The table of one set's system rows (the wild set's or the dense sets').
+fn systems_table(w: &WildSummary) -> String {
     let mut out = String::new();
-    let _ = writeln!(
-        out,
-        "\n## In the wild: sampled scenes\n\n\
-         Scenes sampled over wide ranges of pose, size, occluders, background, lighting and camera effects \
-         (`datasets/wild/`; datasets: {}), the same scenes for every system at equal marker-square size. \
-         **Found** = correct + rough: a marker is *correct* when the id is right and every corner lies within \
-         3 px or 5% of the side (the larger), *rough* when the id is right but some corner is farther (a robot \
-         would trust it). Pose comes from each system's reported corners, undistorted, through one solver \
-         (IPPE, the known marker-square side); a pose is *flipped* when its rotation is more than {FLIP_ROTATION_DEG:.0} deg \
-         off, or when IPPE's other solution is closer to the truth while the two are at least {FLIP_SEPARATION_DEG:.0} deg apart. \
-         Jitter is the median, over scenes rendered several times with fresh sensor noise (at least \
-         {JITTER_MIN_RENDERS} renders found), of the spread of the corners (px, RMS over the four), of the \
-         translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
-         images. Minimum size: on the markers in plain view (no occluder, no glare spot on the marker, sharp: \
-         defocus under {SHARP_DEFOCUS_PX} px and motion under {SHARP_MOTION_PX} px), the smallest bin of the \
-         marker's side in pixels from which every bin (of at least {MIN_DETECTABLE_MARKERS} of the system's \
-         markers) has at least {:.0}% found; over all markers each bin mixes in occluders, glare and blur up \
-         to the drawn maxima, which have their own rows and curves below. \
-         Every system runs with its library's default settings, as in the sets above (a new user's first \
-         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search; \
-         CopperTag then looks again at full resolution around disc rims too small to read at half \
-         size).\n",
-        if w.datasets.is_empty() {
-            "none".into()
-        } else {
-            w.datasets.join(", ")
-        },
-        100.0 * MIN_DETECTABLE_RATE
-    );
     out.push_str(
         "| system | markers | found | rough | wrong ids | FP/MP | translation median / p95 (mm) | translation median / p95 (% of distance) | rotation median / p95 (deg) | flipped | jitter px / mm / deg (scenes) | time median / p95 / max (ms) | min. size (px) | corners within 2 sigma (observed / estimated) | corner error median / p95 (px): observed; estimated |\n\
          |---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
@@ -346,6 +319,43 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
             corner_error_cell(r)
         );
     }
+    out
+}
+
+/// Writes the wild section's figures and CSVs into `dir` and returns its
+/// Markdown.
+pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
+    let mut out = String::new();
+    let _ = writeln!(
+        out,
+        "\n## In the wild: sampled scenes\n\n\
+         Scenes sampled over wide ranges of pose, size, occluders, background, lighting and camera effects \
+         (`datasets/wild/`; datasets: {}), the same scenes for every system at equal marker-square size. \
+         **Found** = correct + rough: a marker is *correct* when the id is right and every corner lies within \
+         3 px or 5% of the side (the larger), *rough* when the id is right but some corner is farther (a robot \
+         would trust it). Pose comes from each system's reported corners, undistorted, through one solver \
+         (IPPE, the known marker-square side); a pose is *flipped* when its rotation is more than {FLIP_ROTATION_DEG:.0} deg \
+         off, or when IPPE's other solution is closer to the truth while the two are at least {FLIP_SEPARATION_DEG:.0} deg apart. \
+         Jitter is the median, over scenes rendered several times with fresh sensor noise (at least \
+         {JITTER_MIN_RENDERS} renders found), of the spread of the corners (px, RMS over the four), of the \
+         translation (mm) and of the rotation (deg). False positives per megapixel are counted on tag-free \
+         images. Minimum size: on the markers in plain view (no occluder, no glare spot on the marker, sharp: \
+         defocus under {SHARP_DEFOCUS_PX} px and motion under {SHARP_MOTION_PX} px), the smallest bin of the \
+         marker's side in pixels from which every bin (of at least {MIN_DETECTABLE_MARKERS} of the system's \
+         markers) has at least {:.0}% found; over all markers each bin mixes in occluders, glare and blur up \
+         to the drawn maxima, which have their own rows and curves below. \
+         Every system runs with its library's default settings, as in the sets above (a new user's first \
+         run; the defaults of CopperTag and AprilTag 3 halve the image before the quad search; \
+         CopperTag then looks again at full resolution around disc rims too small to read at half \
+         size).\n",
+        if w.datasets.is_empty() {
+            "none".into()
+        } else {
+            w.datasets.join(", ")
+        },
+        100.0 * MIN_DETECTABLE_RATE
+    );
+    out.push_str(&systems_table(w));
     let _ = writeln!(
         out,
         "\nCorners within {SIGMA_MULTIPLE:.0} sigma: of the corners of found markers (correct or rough) whose detection \
@@ -387,6 +397,9 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
             category_table(c, &mut out);
         }
     }
+    if let Some(d) = &w.dense {
+        dense_section(d, dir, &mut out)?;
+    }
     write_atomic_in_new_dir(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
     write_atomic_in_new_dir(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
     write_atomic_in_new_dir(
@@ -394,6 +407,42 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         scenarios_csv(&w.scenarios).as_bytes(),
     )?;
     Ok(out)
+}
+
+/// The dense sets' subsection (the field report's dense frames): their
+/// own system table and scenario rows, and their CSVs.
+fn dense_section(d: &WildSummary, dir: &Path, out: &mut String) -> Result<()> {
+    let _ = writeln!(
+        out,
+        "\n### Dense frames\n\n\
+         The field report's dense frames, \"ten tags of both families, 60-170 px, tilted, some occluded\": \
+         1080p frames of six to ten markers with 60-170 px marker squares (datasets: {}; CopperTag's frames \
+         mix ct8 and ct14), with the wild set's backgrounds, light, occluders and JPEG and its blurs on the \
+         sensor (so larger in this camera's smaller pixels). Summarised apart from the wild set above, whose \
+         scenes they are not: the same columns and scenarios, over these frames only; no tag-free frames \
+         (FP/MP \"-\"), no repeats (no jitter). Times are per 1080p frame. The scenario rows' blur classes \
+         keep the wild set's thresholds in pixels (heavy: defocus >= {HEAVY_DEFOCUS_PX} px or motion >= \
+         {HEAVY_MOTION_PX} px), which here are the lower part of wider drawn ranges (the dense specs give \
+         them).\n",
+        d.datasets.join(", ")
+    );
+    out.push_str(&systems_table(d));
+    if !d.scenarios.is_empty() {
+        let systems: Vec<String> = d.systems.iter().map(|r| r.system.clone()).collect();
+        out.push_str("\nThe detector issue's scenarios on the dense frames (as above):\n\n");
+        out.push_str(&scenarios_table(&d.scenarios, &systems, display));
+    }
+    out.push_str(
+        "\nPer-system figures in `dense-systems.csv`, scenarios in `dense-scenarios.csv`, factor bins in \
+         `dense-factors.csv`.\n\n",
+    );
+    write_atomic_in_new_dir(&dir.join("dense-systems.csv"), d.systems_csv().as_bytes())?;
+    write_atomic_in_new_dir(&dir.join("dense-factors.csv"), d.factors_csv().as_bytes())?;
+    write_atomic_in_new_dir(
+        &dir.join("dense-scenarios.csv"),
+        scenarios_csv(&d.scenarios).as_bytes(),
+    )?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -174,6 +174,26 @@ pub struct WildSummary {
     /// ([`crate::wild_scenarios`]).
     #[serde(default)]
     pub scenarios: Vec<ScenarioRow>,
+    /// The dense sets' figures ([`DENSE_SUFFIX`]), summarised apart: their
+    /// 1080p frames of six to ten larger markers are not the wild set's
+    /// scenes, and pooled with them they would move every figure above
+    /// (rates, times, curves) by how many of each were drawn.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dense: Option<Box<WildSummary>>,
+}
+
+/// Datasets whose name ends so are the dense sets
+/// (`datasets/wild/*-dense.toml`, the field report's dense frames),
+/// summarised apart ([`WildSummary::dense`]).
+pub const DENSE_SUFFIX: &str = "-dense";
+
+impl WildSummary {
+    /// Every dataset evaluated, the dense sets' too.
+    pub fn all_datasets(&self) -> impl Iterator<Item = &String> {
+        self.datasets
+            .iter()
+            .chain(self.dense.iter().flat_map(|d| d.datasets.iter()))
+    }
 }
 
 /// Systems in report order ([`SYSTEMS`]: the paper's four, then the
@@ -267,8 +287,22 @@ fn share(n: usize, of: usize) -> f64 {
     }
 }
 
-/// Aggregates wild runs into the report's figures.
+/// Aggregates wild runs into the report's figures, the dense sets'
+/// ([`DENSE_SUFFIX`]) apart in [`WildSummary::dense`].
 pub fn summarise(runs: &[WildRun]) -> WildSummary {
+    let (dense, wild): (Vec<WildRun>, Vec<WildRun>) = runs
+        .iter()
+        .cloned()
+        .partition(|r| r.dataset.ends_with(DENSE_SUFFIX));
+    let mut w = summarise_set(&wild);
+    if !dense.is_empty() {
+        w.dense = Some(Box::new(summarise_set(&dense)));
+    }
+    w
+}
+
+/// [`summarise`] of one set of runs.
+fn summarise_set(runs: &[WildRun]) -> WildSummary {
     let systems = system_order(runs);
     let mut datasets: Vec<String> = runs.iter().map(|r| r.dataset.clone()).collect();
     datasets.sort();
@@ -400,6 +434,7 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
                 .flat_map(counted)
                 .collect()
         }),
+        dense: None,
     }
 }
 

@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use coppertag_eval::gate::{baseline_of, check_wild, wild_key, Baseline};
+use coppertag_eval::gate::{baseline_of, check_wild, dense_key, wild_key, Baseline};
 use coppertag_eval::wild::{MarkerOutcome, Status, WildRun};
 use coppertag_eval::wild_summary::{summarise, WildSummary};
 
@@ -176,4 +176,149 @@ fn the_gate_command_fails_on_a_worse_wild_slice_and_update_wild_only_adds() {
         .status()
         .unwrap();
     assert_eq!(st.code(), Some(2));
+}
+
+/// After a change to the wild specs, every system's per-dataset entries of
+/// the wild datasets change with the wild entry, and the sweep check
+/// compares them exactly too: `--update-wild` re-makes them from
+/// --summary (a first CI run of such a change failed on a peer's
+/// `*-wild` entry when only the wild entry was re-made), and keeps every
+/// other entry, and a wild dataset's entry the summary lacks, as it was.
+#[test]
+fn update_wild_re_makes_the_wild_datasets_entries_and_keeps_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fixture = common::repo().join("eval/tests/fixtures/summary-stag-fractal.json");
+    let fixture: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(fixture).unwrap()).unwrap();
+    let stag = fixture["summaries"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["detector"] == "stag")
+        .unwrap()
+        .clone();
+    // `as_wild(detector, dataset, rate)`: the STag summary renamed.
+    let as_wild = |detector: &str, dataset: &str, rate: f64| {
+        let mut s = stag.clone();
+        s["detector"] = detector.into();
+        s["dataset"] = dataset.into();
+        s["detection_rate"] = rate.into();
+        s
+    };
+    // The committed baseline: a sweep entry, and entries of two wild
+    // datasets made before the wild specs changed.
+    let old = serde_json::json!({ "summaries": [
+        stag.clone(),
+        as_wild("coppertag", "coppertag-wild", 0.95),
+        as_wild("apriltag3", "fp-clutter", 1.0),
+    ]});
+    write_json(&d.join("old.json"), &old);
+    let gate = |summary: &str, extra: &[&str]| {
+        coppertag()
+            .arg("gate")
+            .arg("--baseline")
+            .arg(d.join("baseline.json"))
+            .arg("--summary")
+            .arg(d.join(summary))
+            .arg("--wild")
+            .arg(d.join("wild.json"))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    write_json(&d.join("wild.json"), &summary(1, 1, 0, 2));
+    let baseline = || -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(d.join("baseline.json")).unwrap()).unwrap()
+    };
+    assert!(gate("old.json", &["--update"]).status.success());
+    let before = baseline();
+    // The changed specs' run: the coppertag-wild rate falls to 0.9; no
+    // apriltag3 run this time.
+    let new = serde_json::json!({ "summaries": [
+        stag.clone(),
+        as_wild("coppertag", "coppertag-wild", 0.9),
+    ]});
+    write_json(&d.join("new.json"), &new);
+    let out = gate("new.json", &[]);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("coppertag/coppertag-wild"));
+
+    let out = gate("new.json", &["--update-wild"]);
+    assert!(out.status.success(), "{out:?}");
+    let after = baseline();
+    let e = &after["entries"];
+    assert_eq!(e["coppertag/coppertag-wild"]["detection_rate"], 0.9);
+    assert_eq!(
+        e["stag/stag-occlusion"],
+        before["entries"]["stag/stag-occlusion"]
+    );
+    assert_eq!(
+        e["apriltag3/fp-clutter"],
+        before["entries"]["apriltag3/fp-clutter"]
+    );
+    assert_eq!(e.as_object().unwrap().len(), 3);
+    assert!(after["wild"]["coppertag/wild"].is_object(), "{after}");
+    // The gate passes on the run, but for the wild dataset it did not
+    // cover, which the gate still asks for.
+    let out = gate("new.json", &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    assert!(!err.contains("coppertag/coppertag-wild"), "{err}");
+    assert!(err.contains("apriltag3/fp-clutter"), "{err}");
+    let mut all = new.clone();
+    all["summaries"]
+        .as_array_mut()
+        .unwrap()
+        .push(as_wild("apriltag3", "fp-clutter", 1.0));
+    write_json(&d.join("all.json"), &all);
+    assert_eq!(gate("all.json", &[]).status.code(), Some(0));
+}
+
+/// The dense sets (`*-dense`) are summarised apart from the wild set, so
+/// their larger markers and 1080p frames move none of the wild set's
+/// figures, and gated apart: a rough detection more on the dense frames
+/// fails the gate under `coppertag/dense`.
+#[test]
+fn dense_sets_are_summarised_and_gated_apart() {
+    let with_dense = |rough: usize| {
+        let mut runs = slice("coppertag", 1, 1, 0, 2);
+        let mut dense = slice("coppertag", rough, 3, 0, 0).remove(0);
+        dense.dataset = "coppertag-dense".into();
+        dense.times_ms = vec![30.0; 10];
+        runs.push(dense);
+        summarise(&runs)
+    };
+    let w = with_dense(1);
+    let alone = summary(1, 1, 0, 2);
+    // The wild set's row is what it is without the dense set.
+    let row = |s: &WildSummary| s.systems.iter().find(|r| r.system == "coppertag").cloned();
+    assert_eq!(row(&w), row(&alone));
+    assert_eq!(w.datasets, ["coppertag-wild", "fp-clutter"]);
+    let d = w.dense.as_deref().expect("a dense summary");
+    assert_eq!(d.datasets, ["coppertag-dense"]);
+    let r = &d.systems[0];
+    assert_eq!((r.markers, r.rough, r.tag_free_images), (10, 1, 0));
+    assert!((r.detection_rate - 0.7).abs() < 1e-12);
+    assert_eq!(r.time_ms.median, 30.0);
+    assert_eq!(
+        w.all_datasets().collect::<Vec<_>>(),
+        ["coppertag-wild", "fp-clutter", "coppertag-dense"]
+    );
+
+    let b = baseline_of(&[], None, Some(&w), "test");
+    assert_eq!(
+        b.wild.keys().collect::<Vec<_>>(),
+        [&dense_key("coppertag"), &wild_key("coppertag")]
+    );
+    assert!(check_wild(&b, &w).is_empty());
+    let fails = check_wild(&b, &with_dense(2));
+    assert_eq!(fails.len(), 1, "{fails:?}");
+    assert!(
+        fails[0].starts_with("coppertag/dense: rough detections grew"),
+        "{fails:?}"
+    );
+    // Without the dense set in the run, its entry is missing.
+    let fails = check_wild(&b, &alone);
+    assert!(fails[0].contains("coppertag/dense: missing"), "{fails:?}");
 }

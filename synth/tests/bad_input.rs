@@ -264,7 +264,7 @@ fn bad_sample_values_point_at_their_key() {
         ),
         (
             "markers_per_frame = [1, 3]",
-            "markers_per_frame = [1, 9]",
+            "markers_per_frame = [1, 13]",
             "markers_per_frame",
             "must lie in",
         ),
@@ -621,7 +621,7 @@ fn every_sample_key_rejects_bad_values_at_its_line() {
     // (key, the key's largest allowed value + something, or a value below
     // its smallest): out of range.
     let numeric: [(&str, &str); 22] = [
-        ("markers_per_frame", "[1, 9]"),
+        ("markers_per_frame", "[1, 13]"),
         ("side_px", "[2, 50]"),
         ("tilt_x_deg", "[-45, 90]"),
         ("tilt_y_deg", "[-90, 45]"),

@@ -570,13 +570,40 @@ occluder_coverage = [0.38, 0.40]
 fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
     // The four systems draw the same scenes: one wild spec stands for all.
-    for name in ["coppertag-wild", "coppertag-jitter", "fp-clutter"] {
+    for name in ["coppertag-wild", "coppertag-jitter", "coppertag-dense", "fp-clutter"] {
         let spec = DatasetSpec::load(&dir.join(format!("{name}.toml"))).unwrap();
         for i in 0..spec.image_count() {
             if let Err(e) = spec.sampled_scene(i).unwrap() {
                 panic!("{name} image {i}: {e}");
             }
         }
+    }
+}
+
+/// The five dense specs draw the same scenes for every system: they
+/// differ only in the sample.markers line (so a range changed in one and
+/// not the others fails here), and CopperTag's mixes its two families.
+#[test]
+fn the_dense_specs_differ_only_in_their_markers() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
+    let settings = |name: &str| -> (Vec<String>, String) {
+        let text = std::fs::read_to_string(dir.join(format!("{name}-dense.toml"))).unwrap();
+        let (markers, rest): (Vec<&str>, Vec<&str>) = text
+            .lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'))
+            .partition(|l| l.starts_with("markers ="));
+        (
+            rest.into_iter().map(str::to_string).collect(),
+            markers.concat(),
+        )
+    };
+    let (ours, markers) = settings("coppertag");
+    assert!(markers.contains("ct14") && markers.contains("ct8"), "{markers}");
+    for peer in ["apriltag3", "aruco3", "stag", "fractal"] {
+        let (theirs, markers) = settings(peer);
+        assert_eq!(theirs, ours, "{peer}");
+        assert!(markers.contains(peer), "{peer}: {markers}");
     }
 }
 

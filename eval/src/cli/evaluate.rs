@@ -249,7 +249,8 @@ pub fn evaluate_wild(loaded: &[Loaded], rule: MatchRule) -> (WildSummary, Vec<St
 }
 
 /// Writes wild.json, wild-systems.csv, wild-factors.csv and
-/// wild-scenarios.csv into `dir`.
+/// wild-scenarios.csv into `dir`, and the dense sets' dense-*.csv when
+/// there are any.
 pub fn write_wild(dir: &Path, w: &WildSummary) -> Result<()> {
     let json = serde_json::to_string_pretty(w)?;
     write_atomic(&dir.join("wild.json"), json.as_bytes())?;
@@ -259,6 +260,14 @@ pub fn write_wild(dir: &Path, w: &WildSummary) -> Result<()> {
         &dir.join("wild-scenarios.csv"),
         scenarios_csv(&w.scenarios).as_bytes(),
     )?;
+    if let Some(d) = &w.dense {
+        write_atomic(&dir.join("dense-systems.csv"), d.systems_csv().as_bytes())?;
+        write_atomic(&dir.join("dense-factors.csv"), d.factors_csv().as_bytes())?;
+        write_atomic(
+            &dir.join("dense-scenarios.csv"),
+            scenarios_csv(&d.scenarios).as_bytes(),
+        )?;
+    }
     Ok(())
 }
 

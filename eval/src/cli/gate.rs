@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::gate::{
-    baseline_of, check, check_speed, check_wild, wild_entries_of, Baseline, Tolerances,
+    baseline_of, check, check_speed, check_wild, update_wild, wild_entries_of, Baseline, Tolerances,
 };
 use coppertag_eval::speed::SpeedReport;
 
@@ -26,8 +26,9 @@ use super::evaluate::{read_summaries, read_wild};
     speed`), divided by the baseline ratio, exceeds 1 + --time-ratio (one peer drifting alone cannot\n\
     fail it; a peer of the baseline not measured does), or, for CopperTag's wild-slice entry (from --wild), the\n\
     detection rate falls or rough detections, wrong ids or false positives (per megapixel on tag-free\n\
-    frames) grow. --update-wild adds or replaces only the wild entries and leaves the rest of the\n\
-    baseline as it is; --update-system NAME does the same for one system's entries (and, with --speed,\n\
+    frames) grow. --update-wild adds or replaces only what the wild slice decides (the wild entries,\n\
+    and every system's entries of the wild datasets named in --wild, from --summary) and leaves the\n\
+    rest of the baseline as it is; --update-system NAME does the same for one system's entries (and, with --speed,\n\
     its speed ratio), e.g. a newly added peer. Exit 2: unreadable input.")]
 pub struct GateArgs {
     /// Committed baseline (JSON).
@@ -71,8 +72,10 @@ pub struct GateArgs {
     #[arg(long, value_name = "NAME", conflicts_with = "update_wild")]
     pub update_system: Option<String>,
 
-    /// Add (or replace) only the baseline's wild entries, from --wild,
-    /// keeping every other entry as it is.
+    /// Add (or replace) only what the wild slice decides: the wild
+    /// entries, from --wild, and every system's entries of the datasets
+    /// --wild names (the sampled scenes, jitter and tag-free sets), from
+    /// --summary; every other entry is kept as it is.
     #[arg(long, requires = "wild")]
     pub update_wild: bool,
 }
@@ -90,8 +93,7 @@ pub fn run(args: &GateArgs) -> Result<bool> {
     let wild = args.wild.as_deref().map(read_wild).transpose()?;
     if args.update_wild {
         let mut b = read_baseline(&args.baseline)?;
-        let entries = wild.as_ref().map(wild_entries_of).unwrap_or_default();
-        if entries.is_empty() {
+        let Some(w) = wild.as_ref().filter(|w| !wild_entries_of(w).is_empty()) else {
             anyhow::bail!(
                 "{}: no gated system (coppertag) in the wild summary",
                 args.wild
@@ -99,13 +101,15 @@ pub fn run(args: &GateArgs) -> Result<bool> {
                     .unwrap_or(std::path::Path::new(""))
                     .display()
             );
-        }
-        b.wild = entries;
+        };
+        let n = update_wild(&mut b, &summaries, w);
         write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
         eprintln!(
-            "wrote the wild entries of baseline {} ({} entries)",
+            "wrote the wild entries of baseline {} ({} entries) and {n} entries of the wild \
+             datasets ({})",
             args.baseline.display(),
-            b.wild.len()
+            b.wild.len(),
+            w.all_datasets().cloned().collect::<Vec<_>>().join(", ")
         );
         return Ok(true);
     }

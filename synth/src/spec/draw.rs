@@ -37,11 +37,26 @@ use super::DatasetSpec;
 pub const IMAGE_DIMS: usize = 20;
 /// Halton coordinates of each marker slot.
 pub const MARKER_DIMS: usize = 12;
-/// Coordinates after the marker slots (added later: appending keeps every
-/// earlier coordinate, and so every earlier draw, as it was).
+/// Marker slots allocated first; the slots past them come after
+/// [`EXTRA_DIMS`] ([`slot_base`]).
+const FIRST_SLOTS: usize = 8;
+/// Coordinates after the first marker slots (added later: appending keeps
+/// every earlier coordinate, and so every earlier draw, as it was).
 const EXTRA_DIMS: usize = 1;
 /// All coordinates.
 pub const DIMS: usize = IMAGE_DIMS + MAX_MARKERS_PER_FRAME * MARKER_DIMS + EXTRA_DIMS;
+
+/// First coordinate of marker slot `slot`: the first [`FIRST_SLOTS`] lie
+/// after the image's, the later ones (added with the dense sets) after
+/// every coordinate allocated before them, so a spec of up to
+/// [`FIRST_SLOTS`] markers draws what it drew before they existed.
+fn slot_base(slot: usize) -> usize {
+    if slot < FIRST_SLOTS {
+        IMAGE_DIMS + slot * MARKER_DIMS
+    } else {
+        IMAGE_DIMS + FIRST_SLOTS * MARKER_DIMS + EXTRA_DIMS + (slot - FIRST_SLOTS) * MARKER_DIMS
+    }
+}
 
 // Image-level coordinates.
 const D_MARKERS: usize = 0;
@@ -65,7 +80,7 @@ const D_FULL_WELL: usize = 17;
 const D_JPEG: usize = 18;
 const D_K1: usize = 19;
 /// Which marker of the frame a glare lies on.
-const D_GLARE_MARKER: usize = IMAGE_DIMS + MAX_MARKERS_PER_FRAME * MARKER_DIMS;
+const D_GLARE_MARKER: usize = IMAGE_DIMS + FIRST_SLOTS * MARKER_DIMS;
 
 // Marker-slot coordinates (offsets within a slot).
 const M_SIZE: usize = 0;
@@ -471,7 +486,7 @@ impl DatasetSpec {
         });
         let mut placed: Vec<(Placement, usize)> = Vec::new();
         for slot in 0..wanted {
-            let base = IMAGE_DIMS + slot * MARKER_DIMS;
+            let base = slot_base(slot);
             let u = |k: usize| halton.value(scene_no as u64, base + k);
             let tx = s.tilt_x_deg.as_ref().map_or(0.0, |f| f.at(u(M_TILT_X)));
             let ty = s.tilt_y_deg.as_ref().map_or(0.0, |f| f.at(u(M_TILT_Y)));
@@ -555,7 +570,7 @@ impl DatasetSpec {
 
         let mut markers = Vec::with_capacity(placed.len());
         for (mi, (p, slot)) in placed.iter().enumerate() {
-            let base = IMAGE_DIMS + slot * MARKER_DIMS;
+            let base = slot_base(*slot);
             let u = |k: usize| halton.value(scene_no as u64, base + k);
             let t = &s.markers[pick(u(M_TYPE), s.markers.len())];
             let id = match &s.id {
@@ -698,5 +713,35 @@ impl DatasetSpec {
             },
             draws,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The first slots keep the coordinates they had before the later
+    /// slots were added (so the committed wild sets draw the same scenes),
+    /// and every slot's coordinates are its own: no two slots, the image's
+    /// coordinates or the glare's share one, and all lie below [`DIMS`].
+    #[test]
+    fn every_slot_has_its_own_coordinates_and_the_first_ones_did_not_move() {
+        for slot in 0..FIRST_SLOTS {
+            assert_eq!(slot_base(slot), IMAGE_DIMS + slot * MARKER_DIMS);
+        }
+        let mut owner = vec![None; DIMS];
+        for (d, o) in owner.iter_mut().enumerate().take(IMAGE_DIMS) {
+            *o = Some(format!("image {d}"));
+        }
+        owner[D_GLARE_MARKER] = Some("glare".to_string());
+        for slot in 0..MAX_MARKERS_PER_FRAME {
+            for k in 0..MARKER_DIMS {
+                let d = slot_base(slot) + k;
+                assert!(d < DIMS, "slot {slot} coordinate {k} is {d}");
+                assert_eq!(owner[d], None, "slot {slot} coordinate {k}");
+                owner[d] = Some(format!("slot {slot}"));
+            }
+        }
+        assert!(owner.iter().all(Option::is_some), "unused coordinates");
     }
 }
