@@ -365,7 +365,9 @@ fn summarise_set(runs: &[WildRun]) -> WildSummary {
             Some(all)
         });
         let fp_free: usize = free.iter().map(|r| r.false_positives).sum();
-        let mp_free: f64 = free.iter().map(|r| r.megapixels).sum();
+        // A fold from +0: a sum of no f64 is -0.0, which the CSV would
+        // print as "-0.0000" for a set without tag-free frames.
+        let mp_free = free.iter().fold(0.0, |a, r| a + r.megapixels);
         let min_side = plain_sides
             .as_ref()
             .and_then(|c| min_detectable_side(c, sys));

@@ -301,6 +301,9 @@ fn dense_sets_are_summarised_and_gated_apart() {
     assert_eq!((r.markers, r.rough, r.tag_free_images), (10, 1, 0));
     assert!((r.detection_rate - 0.7).abs() < 1e-12);
     assert_eq!(r.time_ms.median, 30.0);
+    // No tag-free frames: 0 MP, not -0 (the CSV printed "-0.0000").
+    assert!(r.tag_free_megapixels.is_sign_positive() && r.tag_free_megapixels == 0.0);
+    assert!(!d.systems_csv().contains("-0.0000"), "{}", d.systems_csv());
     assert_eq!(
         w.all_datasets().collect::<Vec<_>>(),
         ["coppertag-wild", "fp-clutter", "coppertag-dense"]

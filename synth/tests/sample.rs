@@ -570,7 +570,12 @@ occluder_coverage = [0.38, 0.40]
 fn every_scene_of_the_committed_wild_specs_can_be_drawn() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
     // The four systems draw the same scenes: one wild spec stands for all.
-    for name in ["coppertag-wild", "coppertag-jitter", "coppertag-dense", "fp-clutter"] {
+    for name in [
+        "coppertag-wild",
+        "coppertag-jitter",
+        "coppertag-dense",
+        "fp-clutter",
+    ] {
         let spec = DatasetSpec::load(&dir.join(format!("{name}.toml"))).unwrap();
         for i in 0..spec.image_count() {
             if let Err(e) = spec.sampled_scene(i).unwrap() {
@@ -599,7 +604,10 @@ fn the_dense_specs_differ_only_in_their_markers() {
         )
     };
     let (ours, markers) = settings("coppertag");
-    assert!(markers.contains("ct14") && markers.contains("ct8"), "{markers}");
+    assert!(
+        markers.contains("ct14") && markers.contains("ct8"),
+        "{markers}"
+    );
     for peer in ["apriltag3", "aruco3", "stag", "fractal"] {
         let (theirs, markers) = settings(peer);
         assert_eq!(theirs, ours, "{peer}");
