@@ -11,8 +11,7 @@ use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
 use crate::sigma::{SigmaCoverage, SIGMA_MULTIPLE};
 use crate::wild_scenarios::{
-    scenarios_csv, scenarios_table, HEAVY_DEFOCUS_PX, HEAVY_MOTION_PX, SHARP_DEFOCUS_PX,
-    SHARP_MOTION_PX,
+    scenarios_table, HEAVY_DEFOCUS_PX, HEAVY_MOTION_PX, SHARP_DEFOCUS_PX, SHARP_MOTION_PX,
 };
 use crate::wild_summary::{
     FactorCurve, WildSummary, JITTER_MIN_RENDERS, MIN_DETECTABLE_MARKERS, MIN_DETECTABLE_RATE,
@@ -398,20 +397,18 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
         }
     }
     if let Some(d) = &w.dense {
-        dense_section(d, dir, &mut out)?;
+        dense_section(d, &mut out);
     }
-    write_atomic_in_new_dir(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
-    write_atomic_in_new_dir(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
-    write_atomic_in_new_dir(
-        &dir.join("wild-scenarios.csv"),
-        scenarios_csv(&w.scenarios).as_bytes(),
-    )?;
+    for (name, text) in w.csv_files() {
+        write_atomic_in_new_dir(&dir.join(name), text.as_bytes())?;
+    }
     Ok(out)
 }
 
 /// The dense sets' subsection (the field report's dense frames): their
-/// own system table and scenario rows, and their CSVs.
-fn dense_section(d: &WildSummary, dir: &Path, out: &mut String) -> Result<()> {
+/// own system table and scenario rows (their CSVs are written with the
+/// wild set's, [`WildSummary::csv_files`]).
+fn dense_section(d: &WildSummary, out: &mut String) {
     let _ = writeln!(
         out,
         "\n### Dense frames\n\n\
@@ -436,13 +433,6 @@ fn dense_section(d: &WildSummary, dir: &Path, out: &mut String) -> Result<()> {
         "\nPer-system figures in `dense-systems.csv`, scenarios in `dense-scenarios.csv`, factor bins in \
          `dense-factors.csv`.\n\n",
     );
-    write_atomic_in_new_dir(&dir.join("dense-systems.csv"), d.systems_csv().as_bytes())?;
-    write_atomic_in_new_dir(&dir.join("dense-factors.csv"), d.factors_csv().as_bytes())?;
-    write_atomic_in_new_dir(
-        &dir.join("dense-scenarios.csv"),
-        scenarios_csv(&d.scenarios).as_bytes(),
-    )?;
-    Ok(())
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@ use crate::pose_error::{angle_between, rotation_of};
 use crate::report::SYSTEMS;
 use crate::sigma::SigmaCoverage;
 use crate::wild::{MarkerOutcome, Status, WildRun, SIDE_FACTOR};
-use crate::wild_scenarios::{plain, scenario_rows, ScenarioRow};
+use crate::wild_scenarios::{plain, scenario_rows, scenarios_csv, ScenarioRow};
 
 /// Fewest found renders of a scene for its jitter to be measured.
 pub const JITTER_MIN_RENDERS: usize = 2;
@@ -188,6 +188,25 @@ pub struct WildSummary {
 pub const DENSE_SUFFIX: &str = "-dense";
 
 impl WildSummary {
+    /// The CSV files of this summary, by name, and their contents:
+    /// `wild-systems.csv`, `wild-factors.csv`, `wild-scenarios.csv`, and
+    /// the dense sets' `dense-*.csv` when there are any (what
+    /// `coppertag eval --wild` and the report both write).
+    pub fn csv_files(&self) -> Vec<(String, String)> {
+        let mut files = Vec::new();
+        for (prefix, w) in
+            std::iter::once(("wild", self)).chain(self.dense.as_deref().map(|d| ("dense", d)))
+        {
+            files.push((format!("{prefix}-systems.csv"), w.systems_csv()));
+            files.push((format!("{prefix}-factors.csv"), w.factors_csv()));
+            files.push((
+                format!("{prefix}-scenarios.csv"),
+                scenarios_csv(&w.scenarios),
+            ));
+        }
+        files
+    }
+
     /// Every dataset evaluated, the dense sets' too.
     pub fn all_datasets(&self) -> impl Iterator<Item = &String> {
         self.datasets

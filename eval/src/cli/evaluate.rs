@@ -12,7 +12,6 @@ use coppertag_eval::runlog::RunLog;
 use coppertag_eval::shard;
 use coppertag_eval::truth::Dataset;
 use coppertag_eval::wild;
-use coppertag_eval::wild_scenarios::scenarios_csv;
 use coppertag_eval::wild_summary::{summarise, WildSummary};
 
 #[derive(Args, Debug)]
@@ -254,19 +253,8 @@ pub fn evaluate_wild(loaded: &[Loaded], rule: MatchRule) -> (WildSummary, Vec<St
 pub fn write_wild(dir: &Path, w: &WildSummary) -> Result<()> {
     let json = serde_json::to_string_pretty(w)?;
     write_atomic(&dir.join("wild.json"), json.as_bytes())?;
-    write_atomic(&dir.join("wild-systems.csv"), w.systems_csv().as_bytes())?;
-    write_atomic(&dir.join("wild-factors.csv"), w.factors_csv().as_bytes())?;
-    write_atomic(
-        &dir.join("wild-scenarios.csv"),
-        scenarios_csv(&w.scenarios).as_bytes(),
-    )?;
-    if let Some(d) = &w.dense {
-        write_atomic(&dir.join("dense-systems.csv"), d.systems_csv().as_bytes())?;
-        write_atomic(&dir.join("dense-factors.csv"), d.factors_csv().as_bytes())?;
-        write_atomic(
-            &dir.join("dense-scenarios.csv"),
-            scenarios_csv(&d.scenarios).as_bytes(),
-        )?;
+    for (name, text) in w.csv_files() {
+        write_atomic(&dir.join(name), text.as_bytes())?;
     }
     Ok(())
 }
