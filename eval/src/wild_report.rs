@@ -405,6 +405,10 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
     Ok(out)
 }
 
+/// The factor `draws.csv` names the family drawn by, where a spec mixes
+/// several (the dense sets' CopperTag frames).
+const FAMILY_FACTOR: &str = "family";
+
 /// The dense sets' subsection (the field report's dense frames): their
 /// own system table and scenario rows (their CSVs are written with the
 /// wild set's, [`WildSummary::csv_files`]).
@@ -424,6 +428,26 @@ fn dense_section(d: &WildSummary, out: &mut String) {
         d.datasets.join(", ")
     );
     out.push_str(&systems_table(d));
+    if let Some(c) = d.factors.iter().find(|c| c.factor == FAMILY_FACTOR) {
+        let shares: Vec<String> = c
+            .points
+            .iter()
+            .map(|p| {
+                format!(
+                    "{} {} {} of {}",
+                    display(&p.system),
+                    p.label,
+                    pct(p.rate()),
+                    p.markers
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            out,
+            "\nBy family (every marker, where a system's frames mix families): {}.",
+            shares.join(", ")
+        );
+    }
     if !d.scenarios.is_empty() {
         let systems: Vec<String> = d.systems.iter().map(|r| r.system.clone()).collect();
         out.push_str("\nThe detector issue's scenarios on the dense frames (as above):\n\n");
@@ -447,5 +471,53 @@ mod tests {
             "2.00 / 4.00 / 4.00"
         );
         assert_eq!(time_cell(&Stats::of(&[])), "-");
+    }
+
+    /// The dense frames get their own subsection, with the family split
+    /// where the frames mix families, and their own CSVs.
+    #[test]
+    fn the_dense_frames_have_their_subsection_and_family_split() {
+        let point = |label: &str, bin, markers, correct| crate::wild_summary::CurvePoint {
+            system: "coppertag".into(),
+            bin,
+            label: label.into(),
+            centre: None,
+            markers,
+            correct,
+            rough: 0,
+        };
+        let dense = WildSummary {
+            datasets: vec!["coppertag-dense".into()],
+            factors: vec![FactorCurve {
+                factor: FAMILY_FACTOR.into(),
+                bins: None,
+                points: vec![point("ct14", 0, 10, 8), point("ct8", 1, 4, 1)],
+            }],
+            ..WildSummary::default()
+        };
+        let w = WildSummary {
+            dense: Some(Box::new(dense)),
+            ..WildSummary::default()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let md = write_wild_section(&w, dir.path()).unwrap();
+        assert!(md.contains("### Dense frames"), "{md}");
+        assert!(md.contains("datasets: coppertag-dense;"), "{md}");
+        assert!(
+            md.contains("CopperTag ct14 80.0% of 10, CopperTag ct8 25.0% of 4"),
+            "{md}"
+        );
+        for f in [
+            "dense-systems.csv",
+            "dense-factors.csv",
+            "dense-scenarios.csv",
+        ] {
+            assert!(dir.path().join(f).exists(), "{f}");
+        }
+        // Without dense frames, no subsection and no dense CSVs.
+        let dir = tempfile::tempdir().unwrap();
+        let md = write_wild_section(&WildSummary::default(), dir.path()).unwrap();
+        assert!(!md.contains("Dense frames"));
+        assert!(!dir.path().join("dense-systems.csv").exists());
     }
 }

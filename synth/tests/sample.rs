@@ -745,3 +745,48 @@ fn events_with_a_share_give_the_same_bytes_on_1_and_2_threads_and_are_absent_in_
         kinds.len()
     );
 }
+
+/// Where `sample.markers` offers several types, each marker's drawn
+/// family is a factor of its own in draws.csv, equal to the truth's
+/// `family`; a spec of one type records none (its draws.csv is what it
+/// was before the factor existed).
+#[test]
+fn the_family_drawn_is_recorded_where_there_is_a_choice() {
+    let tmp = tempfile::tempdir().unwrap();
+    let one = sampled("coppertag", "ct14", "");
+    let two = one.replace(
+        r#"markers = [{ system = "coppertag", family = "ct14" }]"#,
+        r#"markers = [{ system = "coppertag", family = "ct14" }, { system = "coppertag", family = "ct8" }]"#,
+    );
+    assert_ne!(one, two);
+    let mut families = BTreeMap::new();
+    for (name, text) in [("one", &one), ("two", &two)] {
+        let spec = load(tmp.path(), &format!("{name}.toml"), text);
+        let out = tmp.path().join(name);
+        generate(&spec, &out, &GenerateOptions::default(), &|_, _| {}).unwrap();
+        let (_, draws) = csv_rows(&out.join("draws.csv"));
+        let drawn: BTreeMap<(String, String), String> = draws
+            .iter()
+            .filter(|d| d[2] == "family")
+            .map(|d| ((d[0].clone(), d[1].clone()), d[3].clone()))
+            .collect();
+        let (h, truth) = csv_rows(&out.join("truth.csv"));
+        let col = |n: &str| h.iter().position(|x| x == n).unwrap();
+        let in_truth: BTreeMap<(String, String), String> = truth
+            .iter()
+            .map(|t| {
+                (
+                    (t[col("index")].clone(), t[col("marker_index")].clone()),
+                    t[col("family")].clone(),
+                )
+            })
+            .collect();
+        families.insert(name, (drawn, in_truth));
+    }
+    let (drawn, _) = &families["one"];
+    assert!(drawn.is_empty(), "{drawn:?}");
+    let (drawn, in_truth) = &families["two"];
+    assert_eq!(drawn, in_truth);
+    let kinds: std::collections::BTreeSet<&String> = drawn.values().collect();
+    assert_eq!(kinds.len(), 2, "{kinds:?}");
+}

@@ -573,6 +573,13 @@ impl DatasetSpec {
             let base = slot_base(*slot);
             let u = |k: usize| halton.value(scene_no as u64, base + k);
             let t = &s.markers[pick(u(M_TYPE), s.markers.len())];
+            // Which type was drawn, where there was a choice (the dense
+            // sets mix CopperTag's families): a factor of its own, so the
+            // report splits by it. A spec of one type records nothing, as
+            // before.
+            if s.markers.len() > 1 {
+                d.text(Some(mi), "family", t.family.clone());
+            }
             let id = match &s.id {
                 IdChoice::Any => t.ids.0 + pick(u(M_ID), (t.ids.1 - t.ids.0 + 1) as usize) as u64,
                 IdChoice::List(ids) => ids[pick(u(M_ID), ids.len())],
