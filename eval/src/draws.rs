@@ -22,6 +22,10 @@ pub const FILE: &str = "draws.csv";
 /// The factor that ties renders of one scene with fresh sensor noise.
 pub const JITTER_GROUP: &str = "jitter_group";
 
+/// The factor naming the family drawn, where a spec mixes several (the
+/// dense sets' CopperTag frames).
+pub const FAMILY: &str = "family";
+
 /// One drawn value.
 #[derive(Debug, Clone, PartialEq, PartialOrd, Serialize, Deserialize)]
 #[serde(untagged)]

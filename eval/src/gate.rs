@@ -54,6 +54,21 @@ pub struct BaselineEntry {
     pub time_median_ms: Option<f64>,
 }
 
+impl BaselineEntry {
+    /// The entry of one run's summary.
+    fn of(s: &Summary) -> Self {
+        Self {
+            detection_rate: s.detection_rate,
+            wrong_ids: s.wrong_ids,
+            false_positives: s.false_positives,
+            duplicates: s.duplicates,
+            corner_median_px: s.corner_error_real.median,
+            corner_p95_px: s.corner_error_real.p95,
+            time_median_ms: s.median_ms(),
+        }
+    }
+}
+
 /// What the gate remembers of one system on the wild slice (one row of
 /// the wild table).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -187,20 +202,7 @@ pub fn baseline_of(
         wild: wild.map(wild_entries_of).unwrap_or_default(),
         entries: summaries
             .iter()
-            .map(|s| {
-                (
-                    key(s),
-                    BaselineEntry {
-                        detection_rate: s.detection_rate,
-                        wrong_ids: s.wrong_ids,
-                        false_positives: s.false_positives,
-                        duplicates: s.duplicates,
-                        corner_median_px: s.corner_error_real.median,
-                        corner_p95_px: s.corner_error_real.p95,
-                        time_median_ms: s.median_ms(),
-                    },
-                )
-            })
+            .map(|s| (key(s), BaselineEntry::of(s)))
             .collect(),
         speed_ratio_vs: speed
             .map(|r| r.peers.iter().map(|(k, p)| (k.clone(), p.ratio)).collect())
@@ -211,19 +213,17 @@ pub fn baseline_of(
 /// Re-makes every part of `b` that the wild slice decides, keeping the
 /// rest as it is, after a deliberate change to the wild specs: the wild
 /// entries (from `w`) and the per-dataset entries of the wild slice's
-/// datasets (`w.datasets`: the sampled scenes, their jitter sets and the
-/// tag-free sets), which the sweep check compares exactly too, from
-/// `summaries`. A wild dataset's entry the summaries do not have (a run
-/// of fewer systems) is left as it was. Returns how many per-dataset
-/// entries were written.
+/// datasets ([`WildSummary::all_datasets`]: the sampled scenes, their
+/// jitter sets, the dense sets and the tag-free sets), which the sweep
+/// check compares exactly too, from `summaries`. A wild dataset's entry
+/// the summaries do not have (a run of fewer systems) is left as it was.
+/// Returns how many per-dataset entries were written.
 pub fn update_wild(b: &mut Baseline, summaries: &[Summary], w: &WildSummary) -> usize {
     b.wild = wild_entries_of(w);
-    let fresh = baseline_of(summaries, None, None, "");
     let mut n = 0;
-    for (k, e) in fresh.entries {
-        let dataset = k.split_once('/').map_or(k.as_str(), |(_, d)| d);
-        if w.all_datasets().any(|d| d == dataset) {
-            b.entries.insert(k, e);
+    for s in summaries {
+        if w.all_datasets().any(|d| *d == s.dataset) {
+            b.entries.insert(key(s), BaselineEntry::of(s));
             n += 1;
         }
     }

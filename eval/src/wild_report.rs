@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use crate::atomic::write_atomic_in_new_dir;
+use crate::draws::FAMILY;
 use crate::error::Result;
 use crate::plot::{line_chart, Chart, Series};
 use crate::pose_error::{FLIP_ROTATION_DEG, FLIP_SEPARATION_DEG};
@@ -405,10 +406,6 @@ pub fn write_wild_section(w: &WildSummary, dir: &Path) -> Result<String> {
     Ok(out)
 }
 
-/// The factor `draws.csv` names the family drawn by, where a spec mixes
-/// several (the dense sets' CopperTag frames).
-const FAMILY_FACTOR: &str = "family";
-
 /// The dense sets' subsection (the field report's dense frames): their
 /// own system table and scenario rows (their CSVs are written with the
 /// wild set's, [`WildSummary::csv_files`]).
@@ -416,19 +413,20 @@ fn dense_section(d: &WildSummary, out: &mut String) {
     let _ = writeln!(
         out,
         "\n### Dense frames\n\n\
-         The field report's dense frames, \"ten tags of both families, 60-170 px, tilted, some occluded\": \
-         1080p frames of six to ten markers with 60-170 px marker squares (datasets: {}; CopperTag's frames \
-         mix ct8 and ct14), with the wild set's backgrounds, light, occluders and JPEG and its blurs on the \
-         sensor (so larger in this camera's smaller pixels). Summarised apart from the wild set above, whose \
-         scenes they are not: the same columns and scenarios, over these frames only; no tag-free frames \
-         (FP/MP \"-\"), no repeats (no jitter). Times are per 1080p frame. The scenario rows' blur classes \
+         The field report's dense frames, \"ten tags of both families, 60-170 px, tilted, some occluded\", \
+         drawn as it describes them (datasets: {}; the dense specs in `datasets/wild/` give the camera, the \
+         markers per frame, their sizes and families, each with its reason), with the wild set's \
+         backgrounds, light, occluders and JPEG and its blurs on the sensor (so larger in this camera's \
+         smaller pixels). Summarised apart from the wild set above, whose scenes they are not: the same \
+         columns and scenarios, over these frames only; no tag-free frames (FP/MP \"-\"), no repeats (no \
+         jitter). Times are per frame of the dense specs' camera. The scenario rows' blur classes \
          keep the wild set's thresholds in pixels (heavy: defocus >= {HEAVY_DEFOCUS_PX} px or motion >= \
          {HEAVY_MOTION_PX} px), which here are the lower part of wider drawn ranges (the dense specs give \
          them).\n",
         d.datasets.join(", ")
     );
     out.push_str(&systems_table(d));
-    if let Some(c) = d.factors.iter().find(|c| c.factor == FAMILY_FACTOR) {
+    if let Some(c) = d.factors.iter().find(|c| c.factor == FAMILY) {
         let shares: Vec<String> = c
             .points
             .iter()
@@ -489,7 +487,7 @@ mod tests {
         let dense = WildSummary {
             datasets: vec!["coppertag-dense".into()],
             factors: vec![FactorCurve {
-                factor: FAMILY_FACTOR.into(),
+                factor: FAMILY.into(),
                 bins: None,
                 points: vec![point("ct14", 0, 10, 8), point("ct8", 1, 4, 1)],
             }],

@@ -217,7 +217,7 @@ impl WildSummary {
 
 /// Systems in report order ([`SYSTEMS`]: the paper's four, then the
 /// fractal markers), then any others by name.
-fn system_order(runs: &[WildRun]) -> Vec<String> {
+fn system_order(runs: &[&WildRun]) -> Vec<String> {
     let mut names: Vec<String> = runs.iter().map(|r| r.detector.clone()).collect();
     names.sort();
     names.dedup();
@@ -309,10 +309,8 @@ fn share(n: usize, of: usize) -> f64 {
 /// Aggregates wild runs into the report's figures, the dense sets'
 /// ([`DENSE_SUFFIX`]) apart in [`WildSummary::dense`].
 pub fn summarise(runs: &[WildRun]) -> WildSummary {
-    let (dense, wild): (Vec<WildRun>, Vec<WildRun>) = runs
-        .iter()
-        .cloned()
-        .partition(|r| r.dataset.ends_with(DENSE_SUFFIX));
+    let (dense, wild): (Vec<&WildRun>, Vec<&WildRun>) =
+        runs.iter().partition(|r| r.dataset.ends_with(DENSE_SUFFIX));
     let mut w = summarise_set(&wild);
     if !dense.is_empty() {
         w.dense = Some(Box::new(summarise_set(&dense)));
@@ -321,7 +319,7 @@ pub fn summarise(runs: &[WildRun]) -> WildSummary {
 }
 
 /// [`summarise`] of one set of runs.
-fn summarise_set(runs: &[WildRun]) -> WildSummary {
+fn summarise_set(runs: &[&WildRun]) -> WildSummary {
     let systems = system_order(runs);
     let mut datasets: Vec<String> = runs.iter().map(|r| r.dataset.clone()).collect();
     datasets.sort();
@@ -330,7 +328,11 @@ fn summarise_set(runs: &[WildRun]) -> WildSummary {
     let plain_sides = plain_side_curve(runs, &systems);
     let mut rows = Vec::new();
     for sys in &systems {
-        let mine: Vec<&WildRun> = runs.iter().filter(|r| &r.detector == sys).collect();
+        let mine: Vec<&WildRun> = runs
+            .iter()
+            .copied()
+            .filter(|r| &r.detector == sys)
+            .collect();
         let tagged: Vec<&&WildRun> = mine.iter().filter(|r| !r.tag_free).collect();
         let free: Vec<&&WildRun> = mine.iter().filter(|r| r.tag_free).collect();
         let outcomes: Vec<&MarkerOutcome> = tagged.iter().flat_map(|r| counted(r)).collect();
@@ -451,6 +453,7 @@ fn summarise_set(runs: &[WildRun]) -> WildSummary {
         factors: curves,
         scenarios: scenario_rows(&systems, |sys| {
             runs.iter()
+                .copied()
                 .filter(|r| r.detector == sys && !r.tag_free)
                 .flat_map(counted)
                 .collect()
@@ -496,7 +499,7 @@ type Observation<'a> = (&'a str, &'a FactorValue, Status);
 /// (the jitter group excepted: it names scenes, it is not a condition), a
 /// factor whose value can say it was left off ([`left_off`]) over the
 /// markers it was applied to.
-fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
+fn factor_curves(runs: &[&WildRun], systems: &[String]) -> Vec<FactorCurve> {
     let mut by_factor: BTreeMap<&str, Vec<Observation>> = BTreeMap::new();
     for r in runs.iter().filter(|r| !r.tag_free) {
         for o in counted(r) {
@@ -519,7 +522,7 @@ fn factor_curves(runs: &[WildRun], systems: &[String]) -> Vec<FactorCurve> {
 
 /// Detection rate against the side in pixels over the counted markers in
 /// plain view ([`plain`]), for [`min_detectable_side`].
-fn plain_side_curve(runs: &[WildRun], systems: &[String]) -> Option<FactorCurve> {
+fn plain_side_curve(runs: &[&WildRun], systems: &[String]) -> Option<FactorCurve> {
     let mut obs: Vec<Observation> = Vec::new();
     for r in runs.iter().filter(|r| !r.tag_free) {
         for o in counted(r).into_iter().filter(|o| plain(o)) {

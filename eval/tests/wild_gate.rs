@@ -273,6 +273,20 @@ fn update_wild_re_makes_the_wild_datasets_entries_and_keeps_the_rest() {
         .push(as_wild("apriltag3", "fp-clutter", 1.0));
     write_json(&d.join("all.json"), &all);
     assert_eq!(gate("all.json", &[]).status.code(), Some(0));
+
+    // A wild summary without CopperTag's row, or one that is not a wild
+    // summary, is refused (exit 2) and the baseline is left as it was.
+    let kept = std::fs::read_to_string(d.join("baseline.json")).unwrap();
+    write_json(&d.join("wild.json"), &summarise(&slice("stag", 0, 0, 0, 0)));
+    let out = gate("all.json", &["--update-wild"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no gated system"));
+    std::fs::write(d.join("wild.json"), "{ \"systems\": 3 ").unwrap();
+    assert_eq!(gate("all.json", &["--update-wild"]).status.code(), Some(2));
+    assert_eq!(
+        std::fs::read_to_string(d.join("baseline.json")).unwrap(),
+        kept
+    );
 }
 
 /// The dense sets (`*-dense`) are summarised apart from the wild set, so

@@ -6,7 +6,7 @@ use anyhow::{Context, Result};
 use clap::Args;
 use coppertag_eval::atomic::write_atomic_in_new_dir as write_atomic;
 use coppertag_eval::gate::{
-    baseline_of, check, check_speed, check_wild, update_wild, wild_entries_of, Baseline, Tolerances,
+    baseline_of, check, check_speed, check_wild, update_wild, Baseline, Tolerances,
 };
 use coppertag_eval::speed::SpeedReport;
 
@@ -93,7 +93,12 @@ pub fn run(args: &GateArgs) -> Result<bool> {
     let wild = args.wild.as_deref().map(read_wild).transpose()?;
     if args.update_wild {
         let mut b = read_baseline(&args.baseline)?;
-        let Some(w) = wild.as_ref().filter(|w| !wild_entries_of(w).is_empty()) else {
+        // `--update-wild` requires `--wild`.
+        let Some(w) = wild.as_ref() else {
+            anyhow::bail!("--update-wild needs --wild");
+        };
+        let n = update_wild(&mut b, &summaries, w);
+        if b.wild.is_empty() {
             anyhow::bail!(
                 "{}: no gated system (coppertag) in the wild summary",
                 args.wild
@@ -101,8 +106,7 @@ pub fn run(args: &GateArgs) -> Result<bool> {
                     .unwrap_or(std::path::Path::new(""))
                     .display()
             );
-        };
-        let n = update_wild(&mut b, &summaries, w);
+        }
         write_atomic(&args.baseline, serde_json::to_string_pretty(&b)?.as_bytes())?;
         eprintln!(
             "wrote the wild entries of baseline {} ({} entries) and {n} entries of the wild \
