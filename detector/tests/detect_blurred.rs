@@ -260,3 +260,116 @@ fn blurring_around_the_tag_gives_the_whole_frames_blur() {
         );
     }
 }
+
+/// `img` smeared by a straight motion of `length` px at `angle` (rad): each
+/// pixel the mean of bilinear samples along the segment through it,
+/// clamped at the border (the synth's motion blur, written again here so
+/// that the detector's tests need nothing of the renderer's crate).
+fn smear(img: &image::GrayImage, length: f64, angle: f64) -> image::GrayImage {
+    let (w, h) = img.dimensions();
+    let at = |x: f64, y: f64| {
+        let x = x.clamp(0.0, f64::from(w - 1));
+        let y = y.clamp(0.0, f64::from(h - 1));
+        let (x0, y0) = (x.floor() as u32, y.floor() as u32);
+        let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+        let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
+        let p = |x, y| f64::from(img.get_pixel(x, y).0[0]);
+        (p(x0, y0) * (1.0 - fx) + p(x1, y0) * fx) * (1.0 - fy)
+            + (p(x0, y1) * (1.0 - fx) + p(x1, y1) * fx) * fy
+    };
+    let n = (length.ceil() as usize) * 2 + 1;
+    let (s, c) = angle.sin_cos();
+    image::GrayImage::from_fn(w, h, |x, y| {
+        let sum: f64 = (0..n)
+            .map(|k| {
+                let t = (k as f64 / (n - 1) as f64 - 0.5) * length;
+                at(f64::from(x) + t * c, f64::from(y) + t * s)
+            })
+            .sum();
+        image::Luma([(sum / n as f64).round() as u8])
+    })
+}
+
+/// A tag smeared by motion along its sides blurs two sides and leaves two
+/// sharp, and the fit's blur term, the median over all sides, does not
+/// see the smear: its corners then lie further off than their sigma says
+/// (on the dense frames a ct14 tag smeared 10 px was reported at sigma
+/// 0.26 px, 4.8 px off). Where the sides' blurs differ by over
+/// `SMEAR_SPREAD_PX`, the fit takes the smear's sigma floor, 2% of the
+/// side (`SMEAR_SIGMA_OF_SIDE`), whichever reading confirmed the tag. On
+/// tags smeared 2-2.5 cells along a side, most corners found must then lie
+/// within 2 sigma of the truth; the same tags defocused as much must not
+/// get the floor (their sides blur alike).
+#[test]
+fn smeared_tags_carry_the_smear_sigma_floor_and_evenly_blurred_ones_do_not() {
+    let mut det = Detector::new(DetectorConfig::default()).unwrap();
+    let mut rng = Rng::new(23);
+    let total = 12;
+    let (mut smeared_found, mut even_found) = (0, 0);
+    let (mut corners, mut within) = (0, 0);
+    for k in 0..total {
+        let side = rng.range(70.0, 90.0);
+        let roll = rng.range(0.0, std::f64::consts::TAU);
+        let r = rotation(rng.range(-0.2, 0.2), rng.range(-0.2, 0.2), roll);
+        let (px, py) = (rng.range(200.0, 440.0), rng.range(180.0, 300.0));
+        let id = rng.next_u64() % 256;
+        let mut s = vga_scene(coppertag::Family::ct14(), id, side, &r, px, py);
+        s.noise = 1.5;
+        s.seed = rng.next_u64();
+        // Along a side, within 8 degrees; 2-2.5 cells long (the dense
+        // frame's tag: 10 px on a 70 px square).
+        let angle = roll + rng.range(-0.14, 0.14);
+        let length = rng.range(2.0, 2.5) * side / 16.0;
+        for d in det.detect(&smear(&s.render(), length, angle)) {
+            assert_eq!(d.id, id, "scene {k}: wrong id");
+            let sigma = d.corner_sigma.expect("a fitted reading");
+            let err = corner_errors(&d.corners, &s.corners());
+            eprintln!("scene {k}, smeared {length:.1} px: errors {err:.2?}, sigma {sigma:.2?}");
+            corners += 4;
+            within += (0..4).filter(|&c| err[c] <= 2.0 * sigma[c]).count();
+            smeared_found += 1;
+        }
+        // The same tag defocused as much as the smear's own spread
+        // (a box of length L has a standard deviation of L / sqrt(12)).
+        s.blur = (length / 12f64.sqrt()) as f32;
+        let floor = 0.02 * side;
+        for d in det.detect(&s.render()) {
+            assert_eq!(d.id, id, "scene {k}: wrong id");
+            let sigma = d.corner_sigma.expect("a fitted reading");
+            assert!(
+                sigma.iter().all(|&sg| sg < floor),
+                "scene {k} ({side:.0} px, defocus {:.1} px): sigma {sigma:?} at the smear's \
+                 floor {floor:.2}",
+                s.blur
+            );
+            even_found += 1;
+        }
+    }
+    eprintln!(
+        "smeared: {smeared_found}/{total} found, {within} of {corners} corners within 2 sigma; \
+         defocused: {even_found}/{total}"
+    );
+    assert!(
+        smeared_found >= total / 2,
+        "smeared: {smeared_found} of {total}"
+    );
+    assert!(
+        even_found >= total / 2,
+        "defocused: {even_found} of {total}"
+    );
+    assert!(
+        within as f64 >= MIN_SMEARED_WITHIN * corners as f64,
+        "{within} of {corners} smeared corners within 2 sigma"
+    );
+}
+
+/// Share of the smeared tags' corners that must lie within 2 sigma in
+/// [`smeared_tags_carry_the_smear_sigma_floor_and_evenly_blurred_ones_do_not`].
+/// Measured: 32 of 40 (10 tags found); without the floor from the sides'
+/// blurs 26 of 44 (11 found: the one more is a tag reported with a corner
+/// 6.45 px off at sigma 0.40 px, which the floor lifts over the bound of
+/// its estimated corner and drops). Two of the 10 are still rough (a corner
+/// 4.6 and 8.9 px off at sigma 1.7 px): a smear of two cells and more is
+/// where the dense frames' rough detections come from, and this is not
+/// their fix.
+const MIN_SMEARED_WITHIN: f64 = 0.7;

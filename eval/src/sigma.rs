@@ -77,6 +77,13 @@ pub struct SigmaCoverage {
     pub code: Tally,
     /// Corners of tags read by likelihood.
     pub likelihood: Tally,
+    /// Corners of tags drawn with a heavy motion blur
+    /// ([`crate::wild_scenarios::HEAVY_MOTION_PX`] or more), which the
+    /// detector floors as smeared (`SMEAR_SPREAD_PX` in
+    /// `detector/src/detect/verify.rs` is chosen on this split of the dense
+    /// calibration set).
+    #[serde(default)]
+    pub smeared: Tally,
 }
 
 /// Whether a corner `error_px` from the truth is within
@@ -93,6 +100,7 @@ impl SigmaCoverage {
         sigma_px: &[f64; 4],
         estimated: &[bool; 4],
         likelihood: bool,
+        smeared: bool,
     ) {
         self.detections += 1;
         for k in 0..4 {
@@ -108,6 +116,9 @@ impl SigmaCoverage {
             } else {
                 self.code.count(w)
             }
+            if smeared {
+                self.smeared.count(w)
+            }
         }
     }
 
@@ -120,6 +131,7 @@ impl SigmaCoverage {
             (&mut self.estimated, &other.estimated),
             (&mut self.code, &other.code),
             (&mut self.likelihood, &other.likelihood),
+            (&mut self.smeared, &other.smeared),
         ] {
             a.merge(b);
         }
@@ -131,7 +143,8 @@ impl SigmaCoverage {
         let mut c = SigmaCoverage::default();
         for o in outcomes.into_iter().filter(|o| o.found()) {
             if let (Some(e), Some(s)) = (&o.corner_errors_px, &o.corner_sigma) {
-                c.add(e, s, &o.estimated, o.likelihood);
+                let smeared = crate::wild_scenarios::heavy_motion(&o.factors);
+                c.add(e, s, &o.estimated, o.likelihood, smeared);
             }
         }
         (c.detections > 0).then_some(c)
@@ -152,11 +165,14 @@ impl SigmaCoverage {
         );
         let _ = write!(
             s,
-            "; read by code {}, by likelihood {}; observed {}, estimated {}",
+            "; read by code {}, by likelihood {}; observed {}, estimated {}; \
+             motion blur >= {} px {}",
             part(&self.code),
             part(&self.likelihood),
             part(&self.observed),
-            part(&self.estimated)
+            part(&self.estimated),
+            crate::wild_scenarios::HEAVY_MOTION_PX,
+            part(&self.smeared)
         );
         s
     }
@@ -197,6 +213,14 @@ mod tests {
         // Read by likelihood, sigma per corner: 3 of 4 within.
         let mut b = found([0.1, 0.9, 2.0, 0.0], Some([0.1, 0.5, 0.9, 0.0]), [false; 4]);
         b.likelihood = true;
+        // b alone was drawn with a heavy motion blur (a's is just under).
+        let motion = |px| {
+            let mut f = crate::draws::Factors::new();
+            f.insert("motion_blur_px".into(), crate::draws::FactorValue::Num(px));
+            f
+        };
+        a.factors = motion(crate::wild_scenarios::HEAVY_MOTION_PX - 0.01);
+        b.factors = motion(crate::wild_scenarios::HEAVY_MOTION_PX);
         // Missed markers and detections without sigma are not counted.
         let mut missed = found([0.0; 4], Some([1.0; 4]), [false; 4]);
         missed.status = Status::Missed;
@@ -216,7 +240,9 @@ mod tests {
         assert_eq!((c.observed.corners, c.observed.within), (6, 5));
         assert_eq!((c.code.corners, c.code.within), (4, 2));
         assert_eq!((c.likelihood.corners, c.likelihood.within), (4, 3));
+        assert_eq!((c.smeared.corners, c.smeared.within), (4, 3));
         let line = c.describe();
+        assert!(line.contains("motion blur >= 3.6 px 75.0% of 4"), "{line}");
         assert!(line.contains("within 2 sigma: 62.5% of 8"), "{line}");
         assert!(line.contains("estimated 0.0% of 2"), "{line}");
         // Two sets of one system add up.

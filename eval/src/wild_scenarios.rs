@@ -112,8 +112,13 @@ fn glared(o: &MarkerOutcome) -> bool {
 }
 
 fn heavy_blur(f: &Factors) -> bool {
-    num(f, "defocus_px").is_some_and(|d| d >= HEAVY_DEFOCUS_PX)
-        || num(f, "motion_blur_px").is_some_and(|m| m >= HEAVY_MOTION_PX)
+    num(f, "defocus_px").is_some_and(|d| d >= HEAVY_DEFOCUS_PX) || heavy_motion(f)
+}
+
+/// Whether the frame was drawn with a heavy motion blur
+/// ([`HEAVY_MOTION_PX`] or more).
+pub(crate) fn heavy_motion(f: &Factors) -> bool {
+    num(f, "motion_blur_px").is_some_and(|m| m >= HEAVY_MOTION_PX)
 }
 
 /// Whether marker `o` is in plain view: no occluder, no glare spot on it,

@@ -615,15 +615,14 @@ fn the_dense_specs_differ_only_in_their_markers() {
     }
 }
 
-/// The corner-sigma calibration set (`make calibrate-sigma`) is the wild
-/// set with another seed and fewer scenes, nothing else: constants chosen
-/// on it must hold for the wild set's conditions, so a range changed in
-/// one spec and not the other fails here.
+/// The corner-sigma calibration sets (`make calibrate-sigma`) are the wild
+/// set and the dense set with another seed (the wild one with fewer scenes
+/// too), nothing else: constants chosen on them must hold for the
+/// benchmark's conditions, so a range changed in one spec and not the
+/// other fails here.
 #[test]
-fn the_calibration_spec_is_the_wild_spec_with_another_seed() {
+fn the_calibration_specs_are_the_benchmark_specs_with_another_seed() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../datasets/wild");
-    let wild_path = dir.join("coppertag-wild.toml");
-    let calib_path = dir.join("calibration/coppertag-calib.toml");
     // The settings, without comments, blank lines and the three keys
     // that differ on purpose.
     let settings = |path: &Path| -> Vec<String> {
@@ -640,13 +639,25 @@ fn the_calibration_spec_is_the_wild_spec_with_another_seed() {
             .map(str::to_string)
             .collect()
     };
-    assert_eq!(settings(&calib_path), settings(&wild_path));
-    let (wild, calib) = (
-        DatasetSpec::load(&wild_path).unwrap(),
-        DatasetSpec::load(&calib_path).unwrap(),
-    );
-    assert_eq!((wild.seed, calib.seed), (2026, 7));
-    assert_eq!((wild.image_count(), calib.image_count()), (3000, 1000));
+    for (bench, calib, seeds, counts) in [
+        ("coppertag-wild", "coppertag-calib", (2026, 7), (3000, 1000)),
+        (
+            "coppertag-dense",
+            "coppertag-dense-calib",
+            (2028, 8),
+            (200, 200),
+        ),
+    ] {
+        let bench_path = dir.join(format!("{bench}.toml"));
+        let calib_path = dir.join(format!("calibration/{calib}.toml"));
+        assert_eq!(settings(&calib_path), settings(&bench_path), "{calib}");
+        let (b, c) = (
+            DatasetSpec::load(&bench_path).unwrap(),
+            DatasetSpec::load(&calib_path).unwrap(),
+        );
+        assert_eq!((b.seed, c.seed), seeds, "{calib}");
+        assert_eq!((b.image_count(), c.image_count()), counts, "{calib}");
+    }
 }
 
 /// `sampled` with the event-like nuisances given a share of one half.

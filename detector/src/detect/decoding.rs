@@ -1696,8 +1696,9 @@ const KEEP_MOVE_PX: f64 = 1.0;
 const RIM_SIGMA_OF_SIDE: f64 = 0.025;
 
 /// Floor of the corner uncertainty of a tag whose fitted geometry was
-/// confirmed by a reading as smeared by motion (`decode::Promising`), as a
-/// share of its side: a smear widens two of the data square's sides and
+/// confirmed by a reading as smeared by motion (`decode::Promising`), or
+/// whose fit found its sides blurred as a smear blurs them
+/// (`verify::SMEAR_SPREAD_PX`), as a share of its side: a smear widens two of the data square's sides and
 /// rounds its corners off along it, and the fit, which takes the edges
 /// for blurred evenly, places the corners further from the truth than its
 /// sigma says (on the calibration set 87.3% of those corners lay within

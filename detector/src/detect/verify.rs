@@ -216,6 +216,31 @@ const SIGMA_FLOOR_PX: f64 = 0.12;
 /// stay below (87%).
 const BLUR_BIAS: f64 = 0.2;
 
+/// A fit whose four sides' blurs (each side's median edge width, as a
+/// Gaussian sigma in px) differ by more than this (px) is taken for a tag
+/// smeared by motion, and gets the smear's sigma floor
+/// (`decoding::SMEAR_SIGMA_OF_SIDE`) as if a reading of the blur model had
+/// confirmed it (`Verified::smeared`). A smear widens the two sides across
+/// it and leaves the two along it sharp: the corner sigma's blur term takes
+/// the median width of all sides (`BLUR_BIAS`), which a smear leaves at the
+/// sharp sides', and a tag smeared 10 px but confirmed by the plain
+/// likelihood reading had its corners reported at sigma 0.26 px, 4.8 px
+/// off. A defocused tag blurs its four sides alike, and no sides differ
+/// under motion at 45 degrees to them, where the median does see the
+/// smear. Chosen on the dense calibration set
+/// (`datasets/wild/calibration/coppertag-dense-calib.toml`, `make
+/// calibrate-sigma`; the VGA calibration set never blurs its tags enough
+/// to reach it) as the largest limit on a 0.25 px grid that puts more
+/// than 95% of the corners of tags drawn with a motion blur of 3.6 px or
+/// more within 2 sigma of the truth (the split `make calibrate-sigma`
+/// prints): without it 91.8% (all corners 96.2%); 2.0 px 94.6%, 1.75 px
+/// 95.1% (all 97.3%), 1.5 px 95.5%, 1.0 px 97.1%. From 1.0 to 2.0 px it
+/// drops one of the set's 1127 markers found (a ct8 tag smeared 13 px
+/// whose hidden corner, 0.27 px sure before, now has a sigma over the last
+/// resorts' bound, `decoding::LAST_RESORT_SIGMA_PX`), at 0.75 px three.
+/// The VGA calibration set is unchanged.
+const SMEAR_SPREAD_PX: f64 = 1.75;
+
 /// Step of the numerical derivative of the homography's mapping along an
 /// edge (tag units).
 const EPS: f64 = 1e-4;
@@ -422,9 +447,22 @@ pub(crate) struct Verified {
     pub sigma: [f64; 4],
     /// Tag units to pixels.
     pub homography: Homography,
-    /// Confirmed by a reading as smeared by motion (see
-    /// `decoding::SMEAR_SIGMA_OF_SIDE`).
+    /// Smeared by motion (see `decoding::SMEAR_SIGMA_OF_SIDE`): confirmed
+    /// by a reading of the blur model, or with sides blurred as a smear's
+    /// are ([`SMEAR_SPREAD_PX`]).
     pub smeared: bool,
+}
+
+/// What a fit says of the geometry it fitted, for [`check`] to carry
+/// into [`Verified`].
+#[derive(Debug, Clone, Copy)]
+struct Fitted {
+    /// Which corners no visible edge supports.
+    unsupported: [bool; 4],
+    /// One-sigma uncertainty of each corner's position (px).
+    sigma: [f64; 4],
+    /// Whether the sides' blurs differ as a smear's do.
+    smeared: bool,
 }
 
 /// What verification concluded about a reading.
@@ -484,14 +522,26 @@ pub(crate) fn verify(
         (h0, false)
     };
     let fit_from = |h: &Homography, how| fit_model(img, &model, h, cell, contrast, how);
-    let check_fit = |f: &Fit| check(img, family, id, f.h, decode, kind, f.unsupported, f.sigma);
+    let check_fit = |f: &Fit| {
+        let fitted = Fitted {
+            unsupported: f.unsupported,
+            sigma: f.sigma,
+            smeared: f.smeared,
+        };
+        check(img, family, id, f.h, decode, kind, fitted)
+    };
     // Where the sides alone do not fit a small tag, a second try with the
     // cell edges (see `MIN_CELL_EDGE_PX`).
     let (fit, second_try) = match fit_from(&h1, FitHow::default()) {
         Some(fit) => (fit, false),
         // The shifted quad stands on the cells alone; it must read.
         None if shifted => {
-            return check(img, family, id, h1, decode, kind, [false; 4], [f64::NAN; 4]);
+            let unfitted = Fitted {
+                unsupported: [false; 4],
+                sigma: [f64::NAN; 4],
+                smeared: false,
+            };
+            return check(img, family, id, h1, decode, kind, unfitted);
         }
         None if cell >= MIN_CELL_EDGE_PX => return Verdict::Unfit,
         None => match fit_from(
@@ -535,7 +585,7 @@ pub(crate) fn verify(
         unsupported: fit.unsupported,
         sigma: fit.sigma,
         homography: fit.h,
-        smeared: false,
+        smeared: fit.smeared,
     });
     // The free fit may have crept off along a direction the visible
     // edges leave free: once more, held near the reading's geometry.
@@ -582,8 +632,7 @@ fn check(
     h: Homography,
     decode: &DecodeParams,
     kind: Confirming,
-    unsupported: [bool; 4],
-    sigma: [f64; 4],
+    fitted: Fitted,
 ) -> Verdict {
     let Some(corners) = map4(&h) else {
         return Verdict::Contradicted(None);
@@ -599,10 +648,10 @@ fn check(
         Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
             Verdict::Fitted(Verified {
                 corners,
-                unsupported,
-                sigma,
+                unsupported: fitted.unsupported,
+                sigma: fitted.sigma,
                 homography: h,
-                smeared: r.smeared,
+                smeared: r.smeared || fitted.smeared,
             })
         }
         _ => Verdict::Contradicted(None),
@@ -693,6 +742,9 @@ struct Fit {
     /// The side whose edge points, as a whole, lie off where the rest of
     /// the model puts them ([`OFF_SIDE_CELLS`]), if any.
     off_side: Option<usize>,
+    /// Whether the sides' blurs differ as a smear's do
+    /// ([`SMEAR_SPREAD_PX`]).
+    smeared: bool,
 }
 
 /// How [`fit_model`] fits.
@@ -1006,6 +1058,7 @@ fn fit_model(
         .collect();
     let blur = median(&mut widths).unwrap_or(0.0) / GAUSS_QUARTILE_SPAN;
     let floor = SIGMA_FLOOR_PX.max(BLUR_BIAS * blur);
+    let smeared = sides_blur_spread(&meas, &weights, model.sides.len() / 4) > SMEAR_SPREAD_PX;
     let mut sigma = [0.0; 4];
     for (k, sg) in sigma.iter_mut().enumerate() {
         let (_, j) = project(&p, CORNERS[k])?;
@@ -1024,7 +1077,39 @@ fn fit_model(
         unsupported,
         sigma,
         off_side,
+        smeared,
     })
+}
+
+/// How much the blurs of the data square's sides differ (px, as Gaussian
+/// sigmas): the largest of the sides' median edge widths less the
+/// smallest, over the sides with inlier edge points at at least half their
+/// `points` model points (as [`off_side`] judges a side); 0 with fewer
+/// than two such sides. Why half: a side an occluder cuts short keeps a
+/// few points beside the occluder's own blurred edge, whose widths are not
+/// the side's (on the robustness set, 4 of its 1750 unblurred frames
+/// were taken for smeared without this).
+fn sides_blur_spread(meas: &[Measured], weights: &[f64], points: usize) -> f64 {
+    let mut per_side: [Vec<f64>; 4] = Default::default();
+    for (q, w) in meas.iter().zip(weights) {
+        if let (Some(k), true) = (q.m.side, *w >= INLIER_WEIGHT) {
+            per_side[k].push(q.width / GAUSS_QUARTILE_SPAN);
+        }
+    }
+    let blurs: Vec<f64> = per_side
+        .iter_mut()
+        .filter(|v| 2 * v.len() >= points)
+        .filter_map(|v| median(v))
+        .collect();
+    if blurs.len() < 2 {
+        return 0.0;
+    }
+    let (lo, hi) = blurs
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &b| {
+            (lo.min(b), hi.max(b))
+        });
+    hi - lo
 }
 
 /// The data-square side whose edge points `meas` (their rows and
