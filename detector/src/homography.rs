@@ -7,6 +7,11 @@
 
 use nalgebra::{Matrix3, SMatrix, SVector};
 
+/// Smallest homogeneous weight (in absolute value) at which
+/// [`Homography::map`] maps a point: nearer 0 the point lies on the line
+/// at infinity.
+pub(crate) const MIN_WEIGHT: f64 = 1e-12;
+
 /// A 3 x 3 homography mapping points of one plane to another.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Homography {
@@ -65,7 +70,7 @@ impl Homography {
         let m = &self.m;
         let row = |r: usize| m[(r, 0)] * p[0] + m[(r, 1)] * p[1] + m[(r, 2)];
         let (x, y, z) = (row(0), row(1), row(2));
-        (z.abs() > 1e-12).then(|| [x / z, y / z])
+        (z.abs() > MIN_WEIGHT).then(|| [x / z, y / z])
     }
 
     /// Whether the mapped point has positive homogeneous weight, i.e. lies

@@ -279,6 +279,8 @@ struct Model {
     black: Vec<bool>,
     /// Cells that are not under the checker.
     free: Vec<bool>,
+    /// How many cells are not under the checker.
+    free_cells: usize,
     /// Half side of the checker square and radius of its disc (tag units).
     checker: (f64, f64),
     /// Edge points of the four sides.
@@ -299,10 +301,12 @@ impl Model {
         }
         let step = 1.0 / (n as f64 + 2.0);
         let k = family.checker_cells() as f64 * step;
+        let free_cells = free.iter().filter(|&&f| f).count();
         let mut m = Self {
             grid: n,
             black,
             free,
+            free_cells,
             checker: (k / 2.0, k / 3.0),
             sides: Vec::new(),
             cells: Vec::new(),
@@ -401,6 +405,46 @@ impl Model {
             }
         }
         agree
+    }
+
+    /// [`Model::agreement`] where only an agreement above `bar` counts:
+    /// that agreement, or `None` once the cells left to sample could not
+    /// lift it above `bar` (every cell left agreeing).
+    ///
+    /// Why: [`best_shift`] takes a shift only for an agreement above its
+    /// best so far, and most shifts of a side fall well short; sampling
+    /// every cell of each was most of its cost. The cells are sampled and
+    /// counted as [`Model::agreement`] does, so an agreement above `bar`
+    /// is the same number.
+    fn agreement_over(
+        &self,
+        img: &GrayView<'_>,
+        h: &Homography,
+        level: f64,
+        bar: usize,
+    ) -> Option<usize> {
+        let n = self.grid;
+        let step = 1.0 / (n as f64 + 2.0);
+        let mut agree = 0;
+        let mut left = self.free_cells;
+        for (c, (&b, &f)) in self.black.iter().zip(&self.free).enumerate() {
+            if !f {
+                continue;
+            }
+            if agree + left <= bar {
+                return None;
+            }
+            left -= 1;
+            let u = -0.5 + (1.5 + (c % n) as f64) * step;
+            let v = -0.5 + (1.5 + (c / n) as f64) * step;
+            let Some(s) = h.map([u, v]).and_then(|p| sample_bilinear(img, p[0], p[1])) else {
+                continue;
+            };
+            if (s < level) == b {
+                agree += 1;
+            }
+        }
+        (agree > bar).then_some(agree)
     }
 
     /// Grey level halfway between the cells the code says are white and
@@ -694,9 +738,17 @@ fn best_shift(img: &GrayView<'_>, model: &Model, h: &Homography) -> (Homography,
     let mut best = (model.agreement(img, h, level), *h);
     let base = best.0;
     let steps = (MAX_SHIFT_SIDE / (SHIFT_STEP_CELLS * step)).floor() as i32;
-    let agreement_at = |k: usize, s: i32| {
+    // The agreement at shift `s` of side `k`, if it lies above `bar`
+    // (any, with none): a shift at or below the bars the search compares
+    // it with changes nothing (`Model::agreement_over`).
+    let agreement_at = |k: usize, s: i32, bar: Option<usize>| {
         let d = f64::from(s) * SHIFT_STEP_CELLS * step;
-        with_side_moved(h, k, d).map(|hs| (model.agreement(img, &hs, level), hs))
+        let hs = with_side_moved(h, k, d)?;
+        let a = match bar {
+            None => model.agreement(img, &hs, level),
+            Some(bar) => model.agreement_over(img, &hs, level, bar)?,
+        };
+        Some((a, hs))
     };
     for k in 0..4 {
         // Coarse to fine: every COARSE_SHIFT_STEPS-th shift, then the
@@ -704,7 +756,9 @@ fn best_shift(img: &GrayView<'_>, model: &Model, h: &Homography) -> (Homography,
         // the shift; a shift of a cell or more moves many cells).
         let mut side_best: Option<(usize, i32)> = None;
         for s in (-steps..=steps).filter(|s| *s != 0 && s % COARSE_SHIFT_STEPS == 0) {
-            if let Some((a, hs)) = agreement_at(k, s) {
+            // Counted only above the side's best and the best so far.
+            let bar = side_best.map(|(b, _)| b.min(best.0));
+            if let Some((a, hs)) = agreement_at(k, s, bar) {
                 if side_best.is_none_or(|(b, _)| a > b) {
                     side_best = Some((a, s));
                 }
@@ -720,7 +774,7 @@ fn best_shift(img: &GrayView<'_>, model: &Model, h: &Homography) -> (Homography,
             if s == 0 || s == s0 || s.abs() > steps {
                 continue;
             }
-            if let Some((a, hs)) = agreement_at(k, s) {
+            if let Some((a, hs)) = agreement_at(k, s, Some(best.0)) {
                 if a > best.0 {
                     best = (a, hs);
                 }
