@@ -125,21 +125,30 @@ fn inside_image(img: &GrayView<'_>, p: [f64; 2]) -> bool {
 /// The bilinear sampler of [`sample_bilinear`] for points already known
 /// to lie in `img` ([`inside_image`]); the image's sizes are read once,
 /// for the many samples of a profile.
+///
+/// The pixel right of the upper-left one, `min(x0 + 1, w - 1)`, is
+/// `x0 + 1` on an image two or more pixels wide (`x0 <= w - 2`) and `x0`
+/// itself on one a pixel wide; likewise the row below. So the four pixels
+/// lie at offsets fixed per image from the upper-left one, taken once
+/// here rather than clamped at every sample: bilinear samples are a sixth
+/// of a cluttered frame's instructions, and the clamps and row products
+/// about an eighth of theirs. The pixels and the arithmetic are the same.
 #[inline(always)]
 fn bilinear_inside<'a>(img: &GrayView<'a>) -> impl Fn(f64, f64) -> f64 + 'a {
     let (w, h, stride, raw) = (img.width(), img.height(), img.stride(), img.data());
     let (xmax, ymax) = (w.saturating_sub(2), h.saturating_sub(2));
+    let right = usize::from(w > 1);
+    let down = if h > 1 { stride } else { 0 };
     move |x, y| {
         // x, y >= 0 here, so truncation is floor.
         let x0 = (x as u32).min(xmax);
         let y0 = (y as u32).min(ymax);
         let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
-        let x1 = (x0 + 1).min(w - 1) as usize;
-        let y1 = (y0 + 1).min(h - 1) as usize;
-        let (x0, r0, r1) = (x0 as usize, y0 as usize * stride, y1 * stride);
+        let top_left = y0 as usize * stride + x0 as usize;
+        let bottom_left = top_left + down;
         let p = |i: usize| GREY_F64[usize::from(raw[i])];
-        let top = p(r0 + x0) * (1.0 - fx) + p(r0 + x1) * fx;
-        let bot = p(r1 + x0) * (1.0 - fx) + p(r1 + x1) * fx;
+        let top = p(top_left) * (1.0 - fx) + p(top_left + right) * fx;
+        let bot = p(bottom_left) * (1.0 - fx) + p(bottom_left + right) * fx;
         top * (1.0 - fy) + bot * fy
     }
 }
