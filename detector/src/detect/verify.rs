@@ -388,40 +388,25 @@ impl Model {
     /// Cells that agree with the code when sampled at their centres
     /// through `h`, thresholded at `level`.
     fn agreement(&self, img: &GrayView<'_>, h: &Homography, level: f64) -> usize {
-        let n = self.grid;
-        let step = 1.0 / (n as f64 + 2.0);
-        let mut agree = 0;
-        for (c, (&b, &f)) in self.black.iter().zip(&self.free).enumerate() {
-            if !f {
-                continue;
-            }
-            let u = -0.5 + (1.5 + (c % n) as f64) * step;
-            let v = -0.5 + (1.5 + (c / n) as f64) * step;
-            let Some(s) = h.map([u, v]).and_then(|p| sample_bilinear(img, p[0], p[1])) else {
-                continue;
-            };
-            if (s < level) == b {
-                agree += 1;
-            }
-        }
-        agree
+        self.agreement_over(img, h, level, None).unwrap_or(0)
     }
 
-    /// [`Model::agreement`] where only an agreement above `bar` counts:
-    /// that agreement, or `None` once the cells left to sample could not
-    /// lift it above `bar` (every cell left agreeing).
+    /// [`Model::agreement`] where, with a `bar`, only an agreement above
+    /// it counts: that agreement, or `None` once the cells left to sample
+    /// could not lift it above `bar` (every cell left agreeing). Without a
+    /// bar, the agreement itself.
     ///
     /// Why: [`best_shift`] takes a shift only for an agreement above its
     /// best so far, and most shifts of a side fall well short; sampling
     /// every cell of each was most of its cost. The cells are sampled and
-    /// counted as [`Model::agreement`] does, so an agreement above `bar`
-    /// is the same number.
+    /// counted alike either way, so an agreement above `bar` is the same
+    /// number.
     fn agreement_over(
         &self,
         img: &GrayView<'_>,
         h: &Homography,
         level: f64,
-        bar: usize,
+        bar: Option<usize>,
     ) -> Option<usize> {
         let n = self.grid;
         let step = 1.0 / (n as f64 + 2.0);
@@ -431,7 +416,7 @@ impl Model {
             if !f {
                 continue;
             }
-            if agree + left <= bar {
+            if bar.is_some_and(|bar| agree + left <= bar) {
                 return None;
             }
             left -= 1;
@@ -444,7 +429,7 @@ impl Model {
                 agree += 1;
             }
         }
-        (agree > bar).then_some(agree)
+        bar.is_none_or(|bar| agree > bar).then_some(agree)
     }
 
     /// Grey level halfway between the cells the code says are white and
@@ -744,11 +729,7 @@ fn best_shift(img: &GrayView<'_>, model: &Model, h: &Homography) -> (Homography,
     let agreement_at = |k: usize, s: i32, bar: Option<usize>| {
         let d = f64::from(s) * SHIFT_STEP_CELLS * step;
         let hs = with_side_moved(h, k, d)?;
-        let a = match bar {
-            None => model.agreement(img, &hs, level),
-            Some(bar) => model.agreement_over(img, &hs, level, bar)?,
-        };
-        Some((a, hs))
+        Some((model.agreement_over(img, &hs, level, bar)?, hs))
     };
     for k in 0..4 {
         // Coarse to fine: every COARSE_SHIFT_STEPS-th shift, then the
