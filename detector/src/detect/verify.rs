@@ -529,18 +529,6 @@ pub(crate) struct Verified {
     pub smeared: bool,
 }
 
-/// What a fit says of the geometry it fitted, for [`check`] to carry
-/// into [`Verified`].
-#[derive(Debug, Clone, Copy)]
-struct Fitted {
-    /// Which corners no visible edge supports.
-    unsupported: [bool; 4],
-    /// One-sigma uncertainty of each corner's position (px).
-    sigma: [f64; 4],
-    /// Whether the sides' blurs differ as a smear's do.
-    smeared: bool,
-}
-
 /// What verification concluded about a reading.
 #[derive(Debug, Clone)]
 pub(crate) enum Verdict {
@@ -598,27 +586,13 @@ pub(crate) fn verify(
         (h0, false)
     };
     let fit_from = |h: &Homography, how| fit_model(img, &model, h, cell, contrast, how);
-    let check_fit = |f: &Fit| {
-        let fitted = Fitted {
-            unsupported: f.unsupported,
-            sigma: f.sigma,
-            smeared: f.smeared,
-        };
-        check(img, family, id, f.h, decode, kind, fitted)
-    };
+    let check_fit = |f: &Fit| check(img, family, id, f, decode, kind);
     // Where the sides alone do not fit a small tag, a second try with the
     // cell edges (see `MIN_CELL_EDGE_PX`).
     let (fit, second_try) = match fit_from(&h1, FitHow::default()) {
         Some(fit) => (fit, false),
         // The shifted quad stands on the cells alone; it must read.
-        None if shifted => {
-            let unfitted = Fitted {
-                unsupported: [false; 4],
-                sigma: [f64::NAN; 4],
-                smeared: false,
-            };
-            return check(img, family, id, h1, decode, kind, unfitted);
-        }
+        None if shifted => return check_fit(&Fit::unfitted(h1)),
         None if cell >= MIN_CELL_EDGE_PX => return Verdict::Unfit,
         None => match fit_from(
             &h1,
@@ -698,19 +672,17 @@ pub(crate) struct Confirming {
     pub glared: bool,
 }
 
-/// The verdict on the geometry `h`: it must still decode to `id`, by the
-/// readings `kind` allows.
-#[allow(clippy::too_many_arguments)]
+/// The verdict on the geometry of `fit`: it must still decode to `id`, by
+/// the readings `kind` allows.
 fn check(
     img: &GrayView<'_>,
     family: &Family,
     id: u64,
-    h: Homography,
+    fit: &Fit,
     decode: &DecodeParams,
     kind: Confirming,
-    fitted: Fitted,
 ) -> Verdict {
-    let Some(corners) = map4(&h) else {
+    let Some(corners) = map4(&fit.h) else {
         return Verdict::Contradicted(None);
     };
     let accept = Accept {
@@ -724,10 +696,10 @@ fn check(
         Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
             Verdict::Fitted(Verified {
                 corners,
-                unsupported: fitted.unsupported,
-                sigma: fitted.sigma,
-                homography: h,
-                smeared: r.smeared || fitted.smeared,
+                unsupported: fit.unsupported,
+                sigma: fit.sigma,
+                homography: fit.h,
+                smeared: r.smeared || fit.smeared,
             })
         }
         _ => Verdict::Contradicted(None),
@@ -827,6 +799,20 @@ struct Fit {
     /// Whether the sides' blurs differ as a smear's do
     /// ([`SMEAR_SPREAD_PX`]).
     smeared: bool,
+}
+
+impl Fit {
+    /// A geometry that stands without a fit: no corner unsupported, no
+    /// sigma.
+    fn unfitted(h: Homography) -> Self {
+        Self {
+            h,
+            unsupported: [false; 4],
+            sigma: [f64::NAN; 4],
+            off_side: None,
+            smeared: false,
+        }
+    }
 }
 
 /// How [`fit_model`] fits.
