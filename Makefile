@@ -148,10 +148,9 @@ else
 	$(BIN) reproduce --quick --work $(QUICKDIR) --reports $(QUICKDIR)/reports
 endif
 
-# The calibration of the detector's corner sigma and fit (BLUR_BIAS,
-# SMEAR_SPREAD_PX and WHITE_ONLY_BLUR_CELLS in
-# detector/src/detect/verify.rs, LIKELIHOOD_SIGMA_FACTOR in
-# detector/src/detect/decoding.rs): the wild set's ranges with another
+# The calibration of the detector's corner sigma (BLUR_BIAS and
+# SMEAR_SPREAD_PX in detector/src/detect/verify.rs, LIKELIHOOD_SIGMA_FACTOR
+# in detector/src/detect/decoding.rs): the wild set's ranges with another
 # seed and 1000 scenes (datasets/wild/calibration/coppertag-calib.toml),
 # and the dense frames' with another seed (coppertag-dense-calib.toml, the
 # blurs of 1080p pixels that the VGA set never reaches), so the constants
