@@ -71,31 +71,22 @@ fn phi(x: f64) -> f64 {
 }
 
 /// Whiteness (black 0, white 1) across a side at `s` px outwards of the
-/// printed edge: margin `cell` px wide inside it, black outside, blurred by
-/// `sigma`; beyond the margin, cells of mean whiteness [`CELLS_WHITENESS`],
-/// or, with `next`, a first cell of that whiteness and the mean beyond it.
-fn model(s: f64, sigma: f64, cell: f64, next: Option<f64>) -> f64 {
+/// printed edge: margin `cell` px wide inside it, cells of mean whiteness
+/// [`CELLS_WHITENESS`] beyond, black outside, blurred by `sigma`.
+fn model(s: f64, sigma: f64, cell: f64) -> f64 {
     let into_cells = phi((-cell - s) / sigma);
-    let beyond = match next {
-        None => CELLS_WHITENESS * into_cells,
-        Some(w) => {
-            let into_second = phi((-2.0 * cell - s) / sigma);
-            w * (into_cells - into_second) + CELLS_WHITENESS * into_second
-        }
-    };
-    phi(-s / sigma) - into_cells + beyond
+    phi(-s / sigma) - into_cells + CELLS_WHITENESS * into_cells
 }
 
-/// What the ruler reads on the model's profile at blur `sigma` (the first
-/// cell beyond the margin as [`model`] takes `next`): the half-level
-/// crossing's offset (px, positive outwards) and the rise's width (px).
-/// `None` where the window shows no crossing.
-fn read_model(sigma: f64, cell: f64, r: &Ruler, next: Option<f64>) -> Option<(f64, f64)> {
+/// What the ruler reads on the model's profile at blur `sigma`: the
+/// half-level crossing's offset (px, positive outwards) and the rise's
+/// width (px). `None` where the window shows no crossing.
+fn read_model(sigma: f64, cell: f64, r: &Ruler) -> Option<(f64, f64)> {
     let step = r.step.max(MODEL_STEP);
     let k0 = -(r.white / step).round() as i32;
     let k1 = (r.black / step).round() as i32;
     let prof: Vec<f64> = (k0..=k1)
-        .map(|k| model(f64::from(k) * step, sigma, cell, next))
+        .map(|k| model(f64::from(k) * step, sigma, cell))
         .collect();
     let mid = (-k0) as usize;
     let (white, black) = levels(&prof, mid);
@@ -191,19 +182,6 @@ impl BlurBias {
     /// measured with `measure` and whose sides are placed with `place`.
     /// `None` for a degenerate cell or ruler.
     pub(crate) fn new(cell: f64, measure: &Ruler, place: &Ruler) -> Option<Self> {
-        Self::with_next(cell, measure, place, None)
-    }
-
-    /// [`BlurBias::new`] for the points of a side that lie beside a white
-    /// cell: looked up by the rise of the side as a whole (its points lie
-    /// beside cells of both colours, so the rise is the mean model's),
-    /// the bias is that of a white first cell beyond the margin, where the
-    /// white stretches two cells and the crossing hardly moves.
-    pub(crate) fn beside_white(cell: f64, measure: &Ruler, place: &Ruler) -> Option<Self> {
-        Self::with_next(cell, measure, place, Some(1.0))
-    }
-
-    fn with_next(cell: f64, measure: &Ruler, place: &Ruler, next: Option<f64>) -> Option<Self> {
         if !(cell > 0.0 && cell.is_finite() && measure.step > 0.0 && place.step > 0.0) {
             return None;
         }
@@ -214,12 +192,12 @@ impl BlurBias {
         };
         for k in 0..TABLE_SIGMAS {
             let sigma = MIN_SIGMA + (top - MIN_SIGMA) * k as f64 / (TABLE_SIGMAS - 1) as f64;
-            t.rise[k] = read_model(sigma, cell, measure, None)?.1;
+            t.rise[k] = read_model(sigma, cell, measure)?.1;
             // At the narrowest blur the margin is untouched.
             t.bias[k] = if k == 0 {
                 0.0
             } else {
-                read_model(sigma, cell, place, next).map_or(0.0, |(at, _)| at)
+                read_model(sigma, cell, place).map_or(0.0, |(at, _)| at)
             };
         }
         Some(t)
@@ -261,7 +239,7 @@ mod tests {
 
     /// The model's bias at blur `sigma` (px), read with `r`.
     fn bias_at(sigma: f64, cell: f64, r: &Ruler) -> f64 {
-        read_model(sigma, cell, r, None).unwrap().0
+        read_model(sigma, cell, r).unwrap().0
     }
 
     #[test]
@@ -289,7 +267,7 @@ mod tests {
     fn the_table_gives_the_bias_of_the_blur_that_made_the_rise() {
         let t = BlurBias::new(2.0, &WIDE, &NARROW).unwrap();
         for sigma in [0.5, 0.8, 1.2, 1.6, 2.4] {
-            let (_, width) = read_model(sigma, 2.0, &WIDE, None).unwrap();
+            let (_, width) = read_model(sigma, 2.0, &WIDE).unwrap();
             let (want, got) = (bias_at(sigma, 2.0, &NARROW), t.at(width));
             assert!((want - got).abs() < 0.01, "sigma {sigma}: {want} vs {got}");
         }
@@ -297,24 +275,5 @@ mod tests {
         assert_eq!(t.at(100.0), bias_at(3.0, 2.0, &NARROW));
         assert!(BlurBias::new(0.0, &WIDE, &NARROW).is_none());
         assert!(BlurBias::new(f64::NAN, &WIDE, &NARROW).is_none());
-    }
-
-    #[test]
-    fn a_side_beside_a_white_cell_is_read_nearly_where_it_is() {
-        // A blur of 0.6 cells: beside a black cell the margin's peak sinks
-        // and the crossing moves out; beside a white one the white runs
-        // two cells deep and it stays within a few hundredths of a cell.
-        let (sigma, cell) = (1.2, 2.0);
-        let (_, width) = read_model(sigma, cell, &WIDE, None).unwrap();
-        let mean = BlurBias::new(cell, &WIDE, &NARROW).unwrap().at(width);
-        let white = BlurBias::beside_white(cell, &WIDE, &NARROW)
-            .unwrap()
-            .at(width);
-        let black = read_model(sigma, cell, &NARROW, Some(0.0)).unwrap().0;
-        assert!(white.abs() < 0.05 * cell, "beside white: {white}");
-        assert!(
-            black > mean + 0.05 && mean > white + 0.05,
-            "{black} {mean} {white}"
-        );
     }
 }

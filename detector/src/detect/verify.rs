@@ -241,43 +241,6 @@ const BLUR_BIAS: f64 = 0.2;
 /// The VGA calibration set is unchanged.
 const SMEAR_SPREAD_PX: f64 = 1.75;
 
-/// A data-square side blurred past this many cells (its median rise as a
-/// Gaussian sigma) is measured only at its points beside a white cell:
-/// the margin and that cell make a white band two cells deep, and its
-/// crossing stays within a few hundredths of a cell of the printed edge
-/// ([`BlurBias::beside_white`]). Beside a black cell the margin's peak
-/// sinks and the crossing moves out into the frame, by up to half a cell
-/// under a smear (a box of 2.3 cells at a 5 px cell: 2.4 px, where beside
-/// a white cell it does not move). One mean bias per side
-/// ([`BlurBias::new`]) is right only where a side's cells are half black
-/// along all of it; where its black cells bunch at one end, the side came
-/// out tilted, and the corners with it (a ct8 tag defocused 4 px on the
-/// dense frames had a corner 3.6 px off at sigma 0.7; 2.4 px now).
-///
-/// Chosen on the two calibration sets (`datasets/wild/calibration/`),
-/// `coppertag detect --json` scored against their truth.csv, as found /
-/// rough / corners within 2 sigma, dense set then VGA set. Without the
-/// rule 1126 / 3 / 97.3% and 1465 / 1 / 96.9%. The scan, made with the
-/// rule's first form (cells from 2.5 px, corner support as on any side):
-/// 0.5 cells 1126 / 4 / 97.5% and 1464 / 1 / 97.0%; **0.4: 1125 / 3 /
-/// 98.2% and 1464 / 1 / 97.1%**; 0.3: 1121 / 4 / 98.4% and 1468 / 1 /
-/// 97.2%; 0.25: 1121 / 6 / 98.4% and 1467 / 1 / 97.2%. As landed (see
-/// [`MIN_WHITE_ONLY_CELL_PX`] and the support of a corner in
-/// [`fit_model`]): 1128 / 2 / 98.2% and 1465 / 1 / 97.0%.
-const WHITE_ONLY_BLUR_CELLS: f64 = 0.4;
-
-/// [`WHITE_ONLY_BLUR_CELLS`] applies to tags with cells of at least this
-/// size (px): a smaller tag's sides need all their points. Over every
-/// size, at 0.4 cells the VGA calibration set found 1472 markers (1 rough),
-/// but the wild set lost 42 of its small ones for 29 new. From the cell
-/// edges' floor ([`MIN_CELL_EDGE_PX`], 2.5 px) the VGA calibration set
-/// found 1464 (corners within 2 sigma 97.1%) and two of the wild set's
-/// tags with 2.8 px cells kept as fixtures got worse (an estimated corner
-/// 1.66 -> 2.26 px off; a glared likelihood reading lost); from 3 px,
-/// 1465 (97.0%), the fixtures unchanged; from 3.5 px the VGA set is as
-/// without the rule, and the dense sets as from 3 px.
-const MIN_WHITE_ONLY_CELL_PX: f64 = 3.0;
-
 /// Step of the numerical derivative of the homography's mapping along an
 /// edge (tag units).
 const EPS: f64 = 1e-4;
@@ -292,9 +255,6 @@ struct EdgePoint {
     /// Which data-square side (0..4, side `k` from corner `k` to `k + 1`)
     /// the point lies on; `None` for a cell edge.
     side: Option<usize>,
-    /// For a side's point: whether the cell beyond the margin next to it
-    /// is white (see [`WHITE_ONLY_BLUR_CELLS`]).
-    beside_white: bool,
 }
 
 /// An edge point measured in the image.
@@ -406,16 +366,10 @@ impl Model {
                             let first = b == 0 && t < 0.5;
                             let last = b + 1 == lines && t > 0.5;
                             if !(first || last) {
-                                let u = at(s0 + t * step, 0.0);
-                                // The middle of the first cell in from the
-                                // margin (a margin cell, white, near a
-                                // corner).
-                                let inside = [u[0] - 1.5 * step * n[0], u[1] - 1.5 * step * n[1]];
                                 self.sides.push(EdgePoint {
-                                    u,
+                                    u: at(s0 + t * step, 0.0),
                                     n,
                                     side,
-                                    beside_white: !self.is_black(inside),
                                 });
                             }
                         }
@@ -424,7 +378,6 @@ impl Model {
                             u: at(mid, 0.0),
                             n,
                             side,
-                            beside_white: false,
                         });
                     }
                 }
@@ -950,47 +903,25 @@ fn profile_step(window: f64) -> f64 {
     (window / WINDOW_SAMPLES).max(MIN_PROFILE_STEP)
 }
 
-/// How each data-square side is measured once its blur is known: which
-/// of its points vote, and how far (px) outwards of the printed edge they
-/// lie.
-#[derive(Debug, Clone, Copy, Default)]
-struct SideBlur {
-    /// The blur bias of the side's voting points' half-level crossing
-    /// ([`edge_bias`]).
-    bias: [f64; 4],
-    /// Whether only the side's points beside a white cell vote
-    /// ([`WHITE_ONLY_BLUR_CELLS`]).
-    white_only: [bool; 4],
-}
-
-/// How each data-square side of the points in `meas` is measured
-/// ([`SideBlur`]), from the median rise of that side's points (a moving
-/// camera blurs the sides across its motion only). `cell` is the tag's
-/// cell (px), the margin's width.
-fn side_blur(meas: &[Measured], cell: f64, ruler: &Ruler) -> SideBlur {
-    let mut out = SideBlur::default();
-    let (Some(mean), Some(white)) = (
-        BlurBias::new(cell, ruler, ruler),
-        BlurBias::beside_white(cell, ruler, ruler),
-    ) else {
-        return out;
+/// How far (px) each data-square side's points in `meas` lie outwards of
+/// the printed edge: the blur bias of their half-level crossing
+/// ([`edge_bias`]), the blur taken from the median rise of that side's
+/// points (a moving camera blurs the sides across its motion only).
+/// `cell` is the tag's cell (px), the margin's width.
+fn blur_bias(meas: &[Measured], cell: f64, ruler: &Ruler) -> [f64; 4] {
+    let mut bias = [0.0; 4];
+    let Some(table) = BlurBias::new(cell, ruler, ruler) else {
+        return bias;
     };
     let mut widths = Vec::new();
-    for k in 0..4 {
+    for (k, b) in bias.iter_mut().enumerate() {
         widths.clear();
         widths.extend(meas.iter().filter(|q| q.m.side == Some(k)).map(|q| q.width));
         if let Some(width) = median(&mut widths) {
-            let white_only = cell >= MIN_WHITE_ONLY_CELL_PX
-                && width / GAUSS_QUARTILE_SPAN > WHITE_ONLY_BLUR_CELLS * cell;
-            out.white_only[k] = white_only;
-            out.bias[k] = if white_only {
-                white.at(width)
-            } else {
-                mean.at(width)
-            };
+            *b = table.at(width);
         }
     }
-    out
+    bias
 }
 
 /// Robust fit of the model's edges (the data square's sides, and its cell
@@ -1020,9 +951,7 @@ fn fit_model(
         step: profile_step(window),
     };
     let mut prof = Vec::new();
-    let mut blurs: Option<SideBlur> = None;
-    // Points measured on a white-only side that do not vote.
-    let mut aside: Vec<Measured> = Vec::new();
+    let mut side_bias = None;
     let mut meas: Vec<Measured> = Vec::new();
     let mut weights: Vec<f64> = Vec::new();
     let mut scale;
@@ -1042,7 +971,7 @@ fn fit_model(
             &mut model.sides.iter().filter(|m| m.side != how.without),
             &mut meas,
         );
-        if blurs.is_none() && !use_cells {
+        if side_bias.is_none() && !use_cells {
             let seen = |k: usize| meas.iter().filter(|q| q.m.side == Some(k)).count();
             use_cells = (0..4).any(|k| seen(k) < MIN_SIDE_POINTS);
         }
@@ -1055,19 +984,10 @@ fn fit_model(
         }
         // The blur of each side, from the first round's profiles (later
         // rounds measure the same edges a little closer).
-        let blur = *blurs.get_or_insert_with(|| side_blur(&meas, cell, &ruler));
-        if blur.white_only.contains(&true) {
-            let votes = |q: &Measured| {
-                q.m.side
-                    .is_none_or(|k| !blur.white_only[k] || q.m.beside_white)
-            };
-            aside.clear();
-            aside.extend(meas.iter().filter(|q| !votes(q)).copied());
-            meas.retain(votes);
-        }
+        let bias = *side_bias.get_or_insert_with(|| blur_bias(&meas, cell, &ruler));
         for q in &mut meas {
             if let Some(k) = q.m.side {
-                let b = blur.bias[k] / s;
+                let b = bias[k] / s;
                 q.x = [q.x[0] - b * q.n[0], q.x[1] - b * q.n[1]];
             }
         }
@@ -1121,39 +1041,21 @@ fn fit_model(
         return None;
     }
     let h = Homography::from_matrix(nm.inverse() * matrix(&p));
-    // Support: inliers on both sides near each corner. A white-only side
-    // (`WHITE_ONLY_BLUR_CELLS`) may have fewer voting points there than
-    // the support asks, when the cells beside it are black: it needs as
-    // many as it has, and with none, as many of its points shown there
-    // (they show the edge, so it is not hidden).
-    let white_only = blurs.map_or([false; 4], |b| b.white_only);
+    // Support: inliers on both sides near each corner.
     let mut unsupported = [false; 4];
     for (k, flag) in unsupported.iter_mut().enumerate() {
         let corner = CORNERS[k];
-        let close = |m: &EdgePoint, side: usize| {
-            m.side == Some(side) && norm(sub(m.u, corner)) <= SUPPORT_REACH
-        };
-        let supported = |side: usize| {
-            let inliers = meas
-                .iter()
+        let near = |side: usize| {
+            meas.iter()
                 .zip(&weights)
-                .filter(|(q, w)| **w >= INLIER_WEIGHT && close(&q.m, side))
-                .count();
-            if !white_only[side] {
-                return inliers >= MIN_SUPPORT;
-            }
-            let voting = model
-                .sides
-                .iter()
-                .filter(|m| m.beside_white && close(m, side))
-                .count();
-            if voting > 0 {
-                inliers >= MIN_SUPPORT.min(voting)
-            } else {
-                aside.iter().filter(|q| close(&q.m, side)).count() >= MIN_SUPPORT
-            }
+                .filter(|(q, w)| {
+                    **w >= INLIER_WEIGHT
+                        && q.m.side == Some(side)
+                        && norm(sub(q.m.u, corner)) <= SUPPORT_REACH
+                })
+                .count()
         };
-        *flag = !supported((k + 3) % 4) || !supported(k);
+        *flag = near((k + 3) % 4) < MIN_SUPPORT || near(k) < MIN_SUPPORT;
     }
     // Covariance of the parameters: residual variance over the weighted
     // normal matrix; propagated to each corner (px).
@@ -1177,12 +1079,7 @@ fn fit_model(
         .collect();
     let blur = median(&mut widths).unwrap_or(0.0) / GAUSS_QUARTILE_SPAN;
     let floor = SIGMA_FLOOR_PX.max(BLUR_BIAS * blur);
-    // Each side's model points that could vote.
-    let points: [usize; 4] = std::array::from_fn(|k| {
-        let on_side = model.sides.iter().filter(|m| m.side == Some(k));
-        on_side.filter(|m| !white_only[k] || m.beside_white).count()
-    });
-    let smeared = sides_blur_spread(&meas, &weights, points) > SMEAR_SPREAD_PX;
+    let smeared = sides_blur_spread(&meas, &weights, model.sides.len() / 4) > SMEAR_SPREAD_PX;
     let mut sigma = [0.0; 4];
     for (k, sg) in sigma.iter_mut().enumerate() {
         let (_, j) = project(&p, CORNERS[k])?;
@@ -1192,7 +1089,7 @@ fn fit_model(
     }
     let off_side = match how.without {
         None if use_cells && how.prior.is_none() => {
-            off_side(&meas, &rows, &weights, cell / s, points)
+            off_side(&meas, &rows, &weights, cell / s, model.sides.len() / 4)
         }
         _ => None,
     };
@@ -1208,13 +1105,12 @@ fn fit_model(
 /// How much the blurs of the data square's sides differ (px, as Gaussian
 /// sigmas): the largest of the sides' median edge widths less the
 /// smallest, over the sides with inlier edge points at at least half their
-/// `points` model points (each side's that could vote, as [`off_side`]
-/// judges a side); 0 with fewer
+/// `points` model points (as [`off_side`] judges a side); 0 with fewer
 /// than two such sides. Why half: a side an occluder cuts short keeps a
 /// few points beside the occluder's own blurred edge, whose widths are not
 /// the side's (on the robustness set, 4 of its 1750 unblurred frames
 /// were taken for smeared without this).
-fn sides_blur_spread(meas: &[Measured], weights: &[f64], points: [usize; 4]) -> f64 {
+fn sides_blur_spread(meas: &[Measured], weights: &[f64], points: usize) -> f64 {
     let mut per_side: [Vec<f64>; 4] = Default::default();
     for (q, w) in meas.iter().zip(weights) {
         if let (Some(k), true) = (q.m.side, *w >= INLIER_WEIGHT) {
@@ -1223,9 +1119,8 @@ fn sides_blur_spread(meas: &[Measured], weights: &[f64], points: [usize; 4]) -> 
     }
     let blurs: Vec<f64> = per_side
         .iter_mut()
-        .zip(points)
-        .filter(|(v, p)| 2 * v.len() >= *p)
-        .filter_map(|(v, _)| median(v))
+        .filter(|v| 2 * v.len() >= points)
+        .filter_map(|v| median(v))
         .collect();
     if blurs.len() < 2 {
         return 0.0;
@@ -1243,7 +1138,7 @@ fn sides_blur_spread(meas: &[Measured], weights: &[f64], points: [usize; 4]) -> 
 /// a whole, lie off the line the rest of the fit puts them on, further
 /// than the other sides' by over [`OFF_SIDE_CELLS`] (`cell` is the cell
 /// in the fit's units; a side is judged when at least half its `points`
-/// model points that could vote were measured): the edge of an occluder flush along that
+/// model points were measured): the edge of an occluder flush along that
 /// side, not the side. The worst such side, if any.
 ///
 /// Why: a block or tape lying along a side, over part of the white margin,
@@ -1259,7 +1154,7 @@ fn off_side(
     rows: &[Option<(Row, f64)>],
     weights: &[f64],
     cell: f64,
-    points: [usize; 4],
+    points: usize,
 ) -> Option<usize> {
     // Each side's median offset (cells) from the fit without it, and
     // whether enough of the side showed to judge it. The normal equations
@@ -1291,7 +1186,7 @@ fn off_side(
             .filter(|(q, _)| q.m.side == Some(k))
             .filter_map(|(_, row)| row.map(|(row, r)| r - (row * delta)[0]))
             .collect();
-        let seen = 2 * off.len() >= points[k];
+        let seen = 2 * off.len() >= points;
         *o = (median(&mut off).map_or(0.0, |m| m.abs() / cell), seen);
     }
     let mut worst: Option<(usize, f64)> = None;
