@@ -1268,6 +1268,40 @@ mod tests {
     use crate::grid_code::encode_cells;
     use crate::test_images::{cells_image, tag_image, INK};
 
+    /// `sample_cells` takes each homography product once per grid column
+    /// or row; its cells must be `cell_mean`'s to the bit, and it must
+    /// fail exactly where some cell's samples leave the image.
+    #[test]
+    fn sampled_cells_are_the_cell_means_to_the_bit() {
+        let fam = Family::ct14();
+        let n = fam.grid();
+        let cells = encode_cells(fam, fam.min_id() + 7).unwrap();
+        let (img, q) = cells_image(n, &cells, 96.0, [160.0, 160.0], 0.3);
+        let view = GrayView::from(&img);
+        let step = 1.0 / (n as f64 + 2.0);
+        // The quad as drawn, under perspective, and pushed past the
+        // image's left edge.
+        let tilted = [
+            q[0],
+            [q[1][0] - 9.0, q[1][1] + 4.0],
+            q[2],
+            [q[3][0] + 6.0, q[3][1]],
+        ];
+        let outside = q.map(|p| [p[0] - 150.0, p[1]]);
+        for quad in [q, tilted, outside] {
+            let h = Homography::from_points(&CORNERS, &quad).unwrap();
+            let means: Option<Vec<f64>> = (0..n * n)
+                .map(|c| cell_mean(&view, &h, step, (c / n) as f64, (c % n) as f64))
+                .collect();
+            let sampled = sample_cells(&view, n, &h);
+            assert_eq!(sampled.is_some(), means.is_some(), "{quad:?}");
+            if let (Some(s), Some(m)) = (sampled, means) {
+                let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&s), bits(&m), "{quad:?}");
+            }
+        }
+    }
+
     /// `decode_quad` trusts a reading by the code with as many corrected
     /// symbols as the detector does by default
     /// ([`Family::default_correction_limit`]): ct8 with 3 symbols misread

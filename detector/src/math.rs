@@ -358,6 +358,42 @@ mod tests {
         assert_eq!(sample_bilinear(&v, 1.5, 0.0), None);
     }
 
+    /// The sampler finds a sample's four pixels at offsets fixed per
+    /// image; they must be the pixels a clamp to the last column and row
+    /// picks, on images one pixel wide or tall too.
+    #[test]
+    fn samples_as_a_clamped_bilinear_on_images_of_any_size() {
+        for (w, h, stride) in [
+            (1u32, 1u32, 1usize),
+            (1, 4, 2),
+            (5, 1, 5),
+            (3, 2, 4),
+            (7, 5, 9),
+        ] {
+            let data: Vec<u8> = (0..stride * h as usize)
+                .map(|i| (i * 53 % 251) as u8)
+                .collect();
+            let v = GrayView::new(&data, w, h, stride).unwrap();
+            let px = |x: u32, y: u32| f64::from(data[y as usize * stride + x as usize]);
+            for k in 0..=40 {
+                for l in 0..=40 {
+                    let x = f64::from(k) / 40.0 * f64::from(w - 1);
+                    let y = f64::from(l) / 40.0 * f64::from(h - 1);
+                    let (x0, y0) = (
+                        (x as u32).min(w.saturating_sub(2)),
+                        (y as u32).min(h.saturating_sub(2)),
+                    );
+                    let (x1, y1) = ((x0 + 1).min(w - 1), (y0 + 1).min(h - 1));
+                    let (fx, fy) = (x - f64::from(x0), y - f64::from(y0));
+                    let top = px(x0, y0) * (1.0 - fx) + px(x1, y0) * fx;
+                    let bot = px(x0, y1) * (1.0 - fx) + px(x1, y1) * fx;
+                    let want = top * (1.0 - fy) + bot * fy;
+                    assert_eq!(sample_bilinear(&v, x, y), Some(want), "{w}x{h} at {x}, {y}");
+                }
+            }
+        }
+    }
+
     #[test]
     fn samples_a_profile_as_point_by_point() {
         // A 7 x 5 gradient with a stride of 9; profiles at odd angles, some

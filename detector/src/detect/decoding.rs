@@ -1698,10 +1698,10 @@ const RIM_SIGMA_OF_SIDE: f64 = 0.025;
 /// Floor of the corner uncertainty of a tag whose fitted geometry was
 /// confirmed by a reading as smeared by motion (`decode::Promising`), or
 /// whose fit found its sides blurred as a smear blurs them
-/// (`verify::SMEAR_SPREAD_PX`), as a share of its side: a smear widens two of the data square's sides and
-/// rounds its corners off along it, and the fit, which takes the edges
-/// for blurred evenly, places the corners further from the truth than its
-/// sigma says (on the calibration set 87.3% of those corners lay within
+/// (`verify::SMEAR_SPREAD_PX`), as a share of its side: a smear widens
+/// two of the data square's sides and rounds its corners off along it,
+/// and the fit, which takes the edges for blurred evenly, places the
+/// corners further from the truth than its sigma says (on the calibration set 87.3% of those corners lay within
 /// 2 sigma, 65 tags; on the wild set 88.7%, 208 tags). Chosen on the
 /// calibration set (`make calibrate-sigma`) as the smallest share on a
 /// 0.005 grid putting at least 95% of their corners within 2 sigma, as
