@@ -1079,6 +1079,7 @@ fn verify_reading(img: &GrayView<'_>, d: &Detection, t: &Target, p: &DecodingPar
         nearest: d.occluded,
         faint: d.faint,
         glared: d.glared,
+        limit: t.max_corrected,
     };
     // A code reading near the code's limit is not held to its own
     // geometry (see `verify::verify`).

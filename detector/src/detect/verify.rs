@@ -41,7 +41,7 @@
 //!    occluder's edges (on the wild set, readings with every corner within
 //!    0.2 px of the truth were fitted 4-18 px away and rejected).
 
-use crate::decode::{decode_quad_by, Accept, DecodeParams, Promising};
+use crate::decode::{decode_quad_by, Accept, DecodeParams, Promising, QuadReading};
 use crate::family::Family;
 use crate::geometry::CORNERS;
 use crate::grid_code::encode_cells;
@@ -623,10 +623,25 @@ pub(crate) struct Confirming {
     /// Tried for any other, it would confirm fitted corners that the
     /// other readings refuse.
     pub glared: bool,
+    /// The reading family's correction limit (`decoding::Target`): a
+    /// reading of another id past it is no reading of the fitted geometry,
+    /// and does not contradict (see [`check`]).
+    pub limit: usize,
 }
 
 /// The verdict on the geometry of `fit`: it must still decode to `id`, by
 /// the readings `kind` allows.
+///
+/// The geometry is read with no limit on the corrections, so that a
+/// reading of `id` resting on erasures confirms it. But the readings are
+/// tried in turn and the first that decodes is taken: past the limit, the
+/// code's erasures can decode another id first (with 18 symbols
+/// corrected, say) where a later reading, within the limit, gives `id`. A
+/// reading of another id is therefore taken only within the family's
+/// limit ([`Confirming::limit`]), as a detection takes it: on the wild
+/// set a tag under a stick, read with 9 corrections and fitted within
+/// 0.3 px of its true corners, was dropped because its fit read as
+/// another id with 18.
 fn check(
     img: &GrayView<'_>,
     family: &Family,
@@ -638,23 +653,29 @@ fn check(
     let Some(corners) = map4(&fit.h) else {
         return Verdict::Contradicted(None);
     };
-    let accept = Accept {
-        nearest: kind.nearest,
-        limit: None,
-        smeared: true,
-        promising: Promising::AlignOrSmear,
-        glared: kind.glared,
+    let read = |limit| {
+        let accept = Accept {
+            nearest: kind.nearest,
+            limit,
+            smeared: true,
+            promising: Promising::AlignOrSmear,
+            glared: kind.glared,
+        };
+        decode_quad_by(img, family, &corners, decode, accept)
     };
-    match decode_quad_by(img, family, &corners, decode, accept) {
-        Some(r) if r.id == id && r.rotation % 4 == 0 && (kind.faint || !r.faint) => {
-            Verdict::Fitted(Verified {
-                corners,
-                unsupported: fit.unsupported,
-                sigma: fit.sigma,
-                homography: fit.h,
-                smeared: r.smeared || fit.smeared,
-            })
-        }
+    let reads_id = |r: &QuadReading| r.id == id && r.rotation.is_multiple_of(4);
+    let reading = match read(None) {
+        Some(r) if !reads_id(&r) => read(Some(kind.limit)),
+        r => r,
+    };
+    match reading {
+        Some(r) if reads_id(&r) && (kind.faint || !r.faint) => Verdict::Fitted(Verified {
+            corners,
+            unsupported: fit.unsupported,
+            sigma: fit.sigma,
+            homography: fit.h,
+            smeared: r.smeared || fit.smeared,
+        }),
         _ => Verdict::Contradicted(None),
     }
 }
