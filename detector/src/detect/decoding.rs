@@ -93,7 +93,7 @@ struct FitKey {
     corners: [[u64; 2]; 4],
     contrast: u64,
     corrected: usize,
-    kind: (bool, bool, bool),
+    kind: (bool, bool, bool, usize),
     held: bool,
 }
 
@@ -1096,7 +1096,7 @@ fn verify_reading(img: &GrayView<'_>, d: &Detection, t: &Target, p: &DecodingPar
         corners: d.corners.map(|c| c.map(f64::to_bits)),
         contrast: d.contrast.to_bits(),
         corrected: d.corrected,
-        kind: (kind.nearest, kind.faint, kind.glared),
+        kind: (kind.nearest, kind.faint, kind.glared, kind.limit),
         held,
     });
     if let Some(v) = p.fits.zip(key.as_ref()).and_then(|(f, k)| f.get(k)) {
@@ -1702,12 +1702,12 @@ const RIM_SIGMA_OF_SIDE: f64 = 0.025;
 /// (`verify::SMEAR_SPREAD_PX`), as a share of its side: a smear widens
 /// two of the data square's sides and rounds its corners off along it,
 /// and the fit, which takes the edges for blurred evenly, places the
-/// corners further from the truth than its sigma says (on the calibration set 87.3% of those corners lay within
-/// 2 sigma, 65 tags; on the wild set 88.7%, 208 tags). Chosen on the
-/// calibration set (`make calibrate-sigma`) as the smallest share on a
-/// 0.005 grid putting at least 95% of their corners within 2 sigma, as
-/// [`RIM_SIGMA_OF_SIDE`] was (0.015: 92.7%, 0.02: 95.8%; on the wild set,
-/// 95.8% with 0.02).
+/// corners further from the truth than its sigma says (on the
+/// calibration set 87.3% of those corners lay within 2 sigma, 65 tags; on
+/// the wild set 88.7%, 208 tags). Chosen on the calibration set (`make
+/// calibrate-sigma`) as the smallest share on a 0.005 grid putting at
+/// least 95% of their corners within 2 sigma, as [`RIM_SIGMA_OF_SIDE`]
+/// was (0.015: 92.7%, 0.02: 95.8%; on the wild set, 95.8% with 0.02).
 const SMEAR_SIGMA_OF_SIDE: f64 = 0.02;
 
 /// Factor on the corner uncertainty of a tag read by likelihood: such a
