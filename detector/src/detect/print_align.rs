@@ -88,18 +88,45 @@ pub(crate) const MIN_CORRELATION: f64 = 0.5;
 fn covers(shape: &Shape, u: f64, v: f64) -> bool {
     match shape {
         Shape::Rect { x0, y0, x1, y1 } => (*x0..=*x1).contains(&u) && (*y0..=*y1).contains(&v),
-        Shape::Disc { cx, cy, r } => (u - cx).hypot(v - cy) <= *r,
+        Shape::Disc { cx, cy, r } => distance_within(u - cx, v - cy, 0.0, *r),
         Shape::Annulus {
             cx,
             cy,
             r_in,
             r_out,
-        } => (*r_in..=*r_out).contains(&(u - cx).hypot(v - cy)),
+        } => distance_within(u - cx, v - cy, *r_in, *r_out),
         Shape::Rects(rs) => rs
             .iter()
             .any(|r| (r[0]..=r[2]).contains(&u) && (r[1]..=r[3]).contains(&v)),
         Shape::Strokes { .. } => false,
     }
+}
+
+/// Relative margin around a radius within which [`distance_within`]
+/// leaves the decision to `hypot`: the squared distance is computed to a
+/// few parts in 10^16, so outside the margin it decides as `hypot` would.
+const HYPOT_MARGIN: f64 = 1e-9;
+
+/// Whether the length of `(du, dv)` lies in `[lo, hi]`, as
+/// `(lo..=hi).contains(&du.hypot(dv))` decides it.
+///
+/// Why not `hypot` alone: building the template ([`template`]) asks
+/// several hundred thousand points whether the print's discs and rings cover them,
+/// and libm's `hypot`, careful about overflow, was a fifth of a
+/// `coppertag detect` process on a small image. The squared distance
+/// decides every point but those within [`HYPOT_MARGIN`] of a radius,
+/// which `hypot` still decides, so the template is the same to the bit
+/// (`template_is_its_definition`).
+fn distance_within(du: f64, dv: f64, lo: f64, hi: f64) -> bool {
+    let d2 = du * du + dv * dv;
+    let (lo2, hi2) = (lo * lo, hi * hi);
+    if d2 < lo2 * (1.0 - HYPOT_MARGIN) || d2 > hi2 * (1.0 + HYPOT_MARGIN) {
+        return false;
+    }
+    if d2 > lo2 * (1.0 + HYPOT_MARGIN) && d2 < hi2 * (1.0 - HYPOT_MARGIN) {
+        return true;
+    }
+    (lo..=hi).contains(&du.hypot(dv))
 }
 
 /// The parts of the print that no id or family changes: every shape of
@@ -165,11 +192,14 @@ struct Turns {
 /// quarter of the points carry what all do, at a quarter of the cost.
 const LEVEL_STRIDE: [usize; 2] = [2, 1];
 
-/// Builds the template ahead of the first frame ([`template`]): about 10
-/// ms, once per process, which would otherwise land on the first frame
-/// with a rim to align (the wild benchmark's slowest frame). The four
-/// turns of [`fixed_look`] add about 3.5 ms to it (a `coppertag detect`
-/// process on a tiny image, 30 runs: 17 -> 20 ms each).
+/// Builds the template ahead of the first frame ([`template`]), once per
+/// process, which would otherwise land on the first frame with a rim to
+/// align (the wild benchmark's slowest frame). On the 2.0 GHz Xeon the
+/// project measures on, it takes 11 ms (24 ms before its stencils were
+/// made once per width and its discs tested by squared distance, see
+/// [`Stencil`] and [`distance_within`]; a `coppertag detect` process on a
+/// 64 x 64 image, 30 runs, went from 49-54 ms to 37-39 ms). The four turns
+/// of [`fixed_look`] are part of it.
 pub(crate) fn prepare() {
     template();
 }
@@ -187,12 +217,12 @@ fn template() -> &'static Template {
                 .flat_map(move |i| (0..GRID).step_by(stride).map(move |j| (i, j)))
                 .map(move |(i, j)| [-REACH + j as f64 * step, -REACH + i as f64 * step])
         };
+        let stencils = SMOOTHING.map(Stencil::new);
         let level_at = |k: usize, stride: usize| {
-            let s = SMOOTHING[k];
             let points: Vec<[f64; 2]> = grid(stride)
                 .filter(|p| print_level(p[0], p[1]).is_some())
                 .collect();
-            let values = points.iter().map(|&p| smoothed(p, s)).collect();
+            let values = points.iter().map(|&p| smoothed(p, &stencils[k])).collect();
             Level { points, values }
         };
         // The grid points outside the cells' area, and the wide
@@ -205,7 +235,7 @@ fn template() -> &'static Template {
         let values = std::array::from_fn(|k| {
             points
                 .iter()
-                .map(|&p| smoothed(turn(p, k), SMOOTHING[0]))
+                .map(|&p| smoothed(turn(p, k), &stencils[0]))
                 .collect()
         });
         Template {
@@ -216,21 +246,46 @@ fn template() -> &'static Template {
     })
 }
 
-/// The print's level at `p` (tag units) smoothed by a Gaussian of width
-/// `s`, the cells and the digits counting as mid-grey (half the cells are
-/// black).
-fn smoothed(p: [f64; 2], s: f64) -> f64 {
-    let (mut sum, mut wsum) = (0.0, 0.0);
-    for a in 0..STENCIL {
-        let du = (a as f64 / (STENCIL - 1) as f64 * 4.0 - 2.0) * s;
-        for c in 0..STENCIL {
-            let dv = (c as f64 / (STENCIL - 1) as f64 * 4.0 - 2.0) * s;
-            let w = (-(du * du + dv * dv) / (2.0 * s * s)).exp();
-            sum += w * print_level(p[0] + du, p[1] + dv).unwrap_or(0.5);
-            wsum += w;
+/// The smoothing stencil of one Gaussian width: its offsets along each
+/// axis (plus or minus two widths), the weight of each offset pair and
+/// their total, summed in the order [`smoothed`] takes them. Made once
+/// per width rather than at each of the template's points (the weights
+/// are the same for all of them; their `exp` was most of the rest of the
+/// template's cost).
+struct Stencil {
+    offsets: [f64; STENCIL],
+    weights: [[f64; STENCIL]; STENCIL],
+    total: f64,
+}
+
+impl Stencil {
+    fn new(s: f64) -> Self {
+        let offsets = std::array::from_fn(|a| (a as f64 / (STENCIL - 1) as f64 * 4.0 - 2.0) * s);
+        let weights =
+            offsets.map(|du| offsets.map(|dv| (-(du * du + dv * dv) / (2.0 * s * s)).exp()));
+        let mut total = 0.0;
+        for w in weights.iter().flatten() {
+            total += w;
+        }
+        Self {
+            offsets,
+            weights,
+            total,
         }
     }
-    sum / wsum
+}
+
+/// The print's level at `p` (tag units) smoothed by the Gaussian of
+/// `stencil`, the cells and the digits counting as mid-grey (half the
+/// cells are black).
+fn smoothed(p: [f64; 2], stencil: &Stencil) -> f64 {
+    let mut sum = 0.0;
+    for (du, row) in stencil.offsets.iter().zip(&stencil.weights) {
+        for (dv, w) in stencil.offsets.iter().zip(row) {
+            sum += w * print_level(p[0] + du, p[1] + dv).unwrap_or(0.5);
+        }
+    }
+    sum / stencil.total
 }
 
 /// A homography from the tag's plane (units of S) to image pixels, as its
@@ -641,6 +696,97 @@ fn step(img: &GrayView<'_>, h: &H8, level: &Level, free: usize) -> Option<H8> {
 pub(crate) mod tests {
     use super::*;
     use image::GrayImage;
+    use proptest::prelude::*;
+
+    /// [`covers`] as first written, with `hypot` for the discs and rings.
+    fn covers_by_hypot(shape: &Shape, u: f64, v: f64) -> bool {
+        match shape {
+            Shape::Disc { cx, cy, r } => (u - cx).hypot(v - cy) <= *r,
+            Shape::Annulus {
+                cx,
+                cy,
+                r_in,
+                r_out,
+            } => (*r_in..=*r_out).contains(&(u - cx).hypot(v - cy)),
+            other => covers(other, u, v),
+        }
+    }
+
+    /// The template's value at `p` by its definition: every stencil
+    /// weight computed where it is used, the shapes tested with `hypot`.
+    fn smoothed_by_definition(p: [f64; 2], s: f64) -> f64 {
+        let level = |u: f64, v: f64| {
+            print_level(u, v)?;
+            let paint = fixed_shapes()
+                .iter()
+                .rev()
+                .find(|e| covers_by_hypot(&e.shape, u, v))
+                .map_or(Paint::White, |e| e.paint);
+            Some(if paint == Paint::White { 1.0 } else { 0.0 })
+        };
+        let (mut sum, mut wsum) = (0.0, 0.0);
+        for a in 0..STENCIL {
+            let du = (a as f64 / (STENCIL - 1) as f64 * 4.0 - 2.0) * s;
+            for c in 0..STENCIL {
+                let dv = (c as f64 / (STENCIL - 1) as f64 * 4.0 - 2.0) * s;
+                let w = (-(du * du + dv * dv) / (2.0 * s * s)).exp();
+                sum += w * level(p[0] + du, p[1] + dv).unwrap_or(0.5);
+                wsum += w;
+            }
+        }
+        sum / wsum
+    }
+
+    /// The template built once with its stencils made ahead and the
+    /// squared-distance tests of [`distance_within`] is, to the bit, the
+    /// template of its definition at every point of every level and turn:
+    /// the alignment, and so every detection, is unchanged by the faster
+    /// build.
+    #[test]
+    fn template_is_its_definition() {
+        let t = template();
+        let same = |points: &[[f64; 2]], values: &[f64], s: f64, turns: usize| {
+            assert_eq!(points.len(), values.len());
+            for (&p, &v) in points.iter().zip(values) {
+                let q = (0..turns).fold(p, |[u, v], _| [-v, u]);
+                let want = smoothed_by_definition(q, s);
+                assert_eq!(
+                    v.to_bits(),
+                    want.to_bits(),
+                    "at {q:?} (width {s}): {v} != {want}"
+                );
+            }
+        };
+        for (k, level) in t.levels.iter().enumerate() {
+            same(&level.points, &level.values, SMOOTHING[k], 0);
+        }
+        same(&t.sparse.points, &t.sparse.values, SMOOTHING[1], 0);
+        for (k, values) in t.turns.values.iter().enumerate() {
+            same(&t.turns.points, values, SMOOTHING[0], k);
+        }
+    }
+
+    proptest! {
+        /// [`distance_within`] decides as `hypot` does, also for points
+        /// on a radius or a few units in the last place from it.
+        #[test]
+        fn distance_within_is_hypot(
+            angle in 0.0f64..std::f64::consts::TAU,
+            lo in 0.0f64..0.9,
+            width in 0.0f64..0.5,
+            at in 0usize..3,
+            ulps in -4i64..=4,
+        ) {
+            let hi = lo + width;
+            let r = [lo, hi, (lo + hi) / 2.0][at];
+            let r = f64::from_bits((r.to_bits() as i64 + ulps).max(0) as u64);
+            let (du, dv) = (r * angle.cos(), r * angle.sin());
+            prop_assert_eq!(
+                distance_within(du, dv, lo, hi),
+                (lo..=hi).contains(&du.hypot(dv))
+            );
+        }
+    }
 
     #[test]
     fn the_print_has_its_fixed_parts() {
